@@ -1,0 +1,20 @@
+# optinav_add_library(NAME layer SRCS ... DEPS ...): one library per layer folder.
+function(optinav_add_library)
+  cmake_parse_arguments(ARG "" "NAME" "SRCS;DEPS" ${ARGN})
+  add_library(optinav_${ARG_NAME} STATIC ${ARG_SRCS})
+  target_include_directories(optinav_${ARG_NAME} PUBLIC ${CMAKE_SOURCE_DIR}/src)
+  target_link_libraries(optinav_${ARG_NAME} PUBLIC ${ARG_DEPS})
+endfunction()
+
+# optinav_add_test(NAME name LAYER layer SRCS ... DEPS ...): registers <layer>/<name> with CTest.
+function(optinav_add_test)
+  cmake_parse_arguments(ARG "" "NAME;LAYER" "SRCS;DEPS" ${ARGN})
+  if(NOT OPTINAV_BUILD_TESTS)
+    return()
+  endif()
+  set(target test_${ARG_LAYER}_${ARG_NAME})
+  add_executable(${target} ${ARG_SRCS})
+  target_link_libraries(${target} PRIVATE optinav_test_main ${ARG_DEPS})
+  add_test(NAME ${ARG_LAYER}/${ARG_NAME} COMMAND ${target})
+  set_tests_properties(${ARG_LAYER}/${ARG_NAME} PROPERTIES TIMEOUT 600)
+endfunction()

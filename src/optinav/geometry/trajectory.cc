@@ -1,0 +1,56 @@
+#include "optinav/geometry/trajectory.h"
+
+#include <algorithm>
+
+namespace optinav {
+
+void Trajectory::Reserve(size_t n, bool with_time) {
+  positions.reserve(n);
+  rotations.reserve(n);
+  if (with_time) t_ns.reserve(n);
+}
+
+void Trajectory::Add(int64_t t, const Rigid3d& pose) {
+  t_ns.push_back(t);
+  Add(pose);
+}
+
+void Trajectory::Add(const Rigid3d& pose) {
+  positions.push_back(pose.translation);
+  rotations.push_back(pose.rotation);
+}
+
+Trajectory Trajectory::Subset(const std::vector<size_t>& indices) const {
+  Trajectory out;
+  out.Reserve(indices.size(), has_timestamps());
+  for (size_t i : indices) {
+    if (has_timestamps()) out.t_ns.push_back(t_ns[i]);
+    out.positions.push_back(positions[i]);
+    out.rotations.push_back(rotations[i]);
+  }
+  return out;
+}
+
+void Trajectory::Transform(const Sim3d& s) {
+  const Eigen::Matrix3d sr = s.scale * s.rotation.toRotationMatrix();
+  for (auto& p : positions) p = sr * p + s.translation;
+  for (auto& q : rotations) q = (s.rotation * q).normalized();
+}
+
+double Trajectory::PathLength() const {
+  double length = 0;
+  for (size_t i = 1; i < positions.size(); ++i) length += (positions[i] - positions[i - 1]).norm();
+  return length;
+}
+
+std::optional<Rigid3d> Trajectory::InterpolateAt(int64_t t) const {
+  if (!has_timestamps() || t < t_ns.front() || t > t_ns.back()) return std::nullopt;
+  const auto it = std::lower_bound(t_ns.begin(), t_ns.end(), t);
+  const size_t j = static_cast<size_t>(it - t_ns.begin());
+  if (t_ns[j] == t) return pose(j);
+  const size_t i = j - 1;
+  const double alpha = static_cast<double>(t - t_ns[i]) / static_cast<double>(t_ns[j] - t_ns[i]);
+  return InterpolatePose(pose(i), pose(j), alpha);
+}
+
+}  // namespace optinav
