@@ -1,0 +1,230 @@
+#include "optinav/io/euroc_dataset.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <filesystem>
+
+#include "optinav/io/text_parse.h"
+#include "optinav/util/config.h"
+
+namespace fs = std::filesystem;
+
+namespace optinav::io {
+namespace {
+
+Rigid3d ReadTbs(const YamlFile& f) {
+  const std::vector<double> d = YamlGetNumbers(f, f.root, "T_BS", 16);
+  Eigen::Matrix<double, 3, 4> m;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 4; ++c) m(r, c) = d[4 * r + c];
+  }
+  const Eigen::Matrix3d rot = m.leftCols<3>();
+  if ((rot * rot.transpose() - Eigen::Matrix3d::Identity()).norm() > 1e-3 ||
+      rot.determinant() < 0) {
+    throw Error("T_BS rotation block is not a rotation", {.file = f.path, .field = "T_BS"});
+  }
+  return Rigid3d::FromMatrix(m);
+}
+
+void CheckIncreasing(int64_t prev, int64_t t, const ErrorContext& ctx) {
+  if (t <= prev) {
+    throw Error(fmt::format("timestamp {} ns does not increase (previous {} ns)", t, prev), ctx);
+  }
+}
+
+}  // namespace
+
+CameraCalibration ReadCameraCalibration(const std::string& sensor_yaml) {
+  const YamlFile f = LoadYamlFile(sensor_yaml);
+  CameraCalibration c;
+  c.camera_model = YamlGetOr<std::string>(f, f.root, "camera_model", "pinhole");
+  if (c.camera_model != "pinhole") {
+    throw Error("unsupported camera_model '" + c.camera_model + "' (only pinhole)",
+                {.file = sensor_yaml, .field = "camera_model"});
+  }
+  const auto res = YamlGetNumbers(f, f.root, "resolution", 2);
+  c.width = static_cast<int>(res[0]);
+  c.height = static_cast<int>(res[1]);
+  if (c.width <= 0 || c.height <= 0) {
+    throw Error("resolution must be positive", {.file = sensor_yaml, .field = "resolution"});
+  }
+  const auto k = YamlGetNumbers(f, f.root, "intrinsics", 4);
+  c.fx = k[0];
+  c.fy = k[1];
+  c.cx = k[2];
+  c.cy = k[3];
+  if (c.fx <= 0 || c.fy <= 0) {
+    throw Error("focal lengths must be positive", {.file = sensor_yaml, .field = "intrinsics"});
+  }
+  c.distortion_model = YamlGetOr<std::string>(f, f.root, "distortion_model", "none");
+  if (c.distortion_model == "radtan") c.distortion_model = "radial-tangential";
+  if (c.distortion_model == "equi" || c.distortion_model == "fisheye") {
+    c.distortion_model = "equidistant";
+  }
+  if (c.distortion_model == "radial-tangential" || c.distortion_model == "equidistant") {
+    c.distortion = YamlGetNumbers(f, f.root, "distortion_coefficients", 4);
+  } else if (c.distortion_model != "none") {
+    throw Error("unsupported distortion_model '" + c.distortion_model +
+                    "' (radial-tangential, equidistant or none)",
+                {.file = sensor_yaml, .field = "distortion_model"});
+  }
+  c.rate_hz = YamlGetOr<double>(f, f.root, "rate_hz", 0.0);
+  c.body_from_cam = ReadTbs(f);
+  return c;
+}
+
+ImuCalibration ReadImuCalibration(const std::string& sensor_yaml) {
+  const YamlFile f = LoadYamlFile(sensor_yaml);
+  ImuCalibration c;
+  c.rate_hz = YamlGet<double>(f, f.root, "rate_hz");
+  c.gyroscope_noise_density = YamlGet<double>(f, f.root, "gyroscope_noise_density");
+  c.gyroscope_random_walk = YamlGet<double>(f, f.root, "gyroscope_random_walk");
+  c.accelerometer_noise_density = YamlGet<double>(f, f.root, "accelerometer_noise_density");
+  c.accelerometer_random_walk = YamlGet<double>(f, f.root, "accelerometer_random_walk");
+  for (const auto& [name, value] :
+       {std::pair{"rate_hz", c.rate_hz}, {"gyroscope_noise_density", c.gyroscope_noise_density},
+        {"gyroscope_random_walk", c.gyroscope_random_walk},
+        {"accelerometer_noise_density", c.accelerometer_noise_density},
+        {"accelerometer_random_walk", c.accelerometer_random_walk}}) {
+    if (!(value > 0)) throw Error("must be positive", {.file = sensor_yaml, .field = name});
+  }
+  c.body_from_imu = ReadTbs(f);
+  return c;
+}
+
+std::vector<ImageEntry> ReadImageList(const std::string& data_csv, const std::string& image_dir,
+                                      bool check_exist, bool drop_missing) {
+  size_t dropped = 0;
+  std::string first_dropped;
+  const std::string text = ReadFileToString(data_csv);
+  LineCursor cursor(text);
+  std::string_view line;
+  std::vector<std::string_view> f;
+  std::vector<ImageEntry> out;
+  while (cursor.Next(&line)) {
+    if (IsCommentOrBlank(line)) continue;
+    ErrorContext ctx{.file = data_csv, .line = cursor.line_number()};
+    SplitFields(line, ',', &f);
+    if (f.size() != 2) {
+      throw Error(fmt::format("expected 'timestamp [ns], filename', found {} fields", f.size()),
+                  ctx);
+    }
+    ctx.field = "timestamp";
+    ImageEntry e{.t_ns = ParseInt64(f[0], ctx), .path = (fs::path(image_dir) / f[1]).string()};
+    if (!out.empty()) CheckIncreasing(out.back().t_ns, e.t_ns, ctx);
+    if (check_exist && !fs::is_regular_file(e.path)) {
+      ctx.field = "filename";
+      if (drop_missing) {
+        if (dropped++ == 0) first_dropped = FormatErrorMessage(e.path, ctx);
+        continue;
+      }
+      throw Error("image file not found: " + e.path, ctx);
+    }
+    out.push_back(std::move(e));
+  }
+  if (dropped > 0) {
+    spdlog::warn("{}: dropped {} listed image(s) that do not exist, first: {}", data_csv, dropped,
+                 first_dropped);
+  }
+  return out;
+}
+
+std::vector<ImuSample> ReadImuCsv(const std::string& data_csv) {
+  static constexpr const char* kFields[] = {"timestamp", "w_x", "w_y", "w_z", "a_x", "a_y", "a_z"};
+  const std::string text = ReadFileToString(data_csv);
+  LineCursor cursor(text);
+  std::string_view line;
+  std::vector<std::string_view> f;
+  std::vector<ImuSample> out;
+  out.reserve(text.size() / 80 + 1);
+  while (cursor.Next(&line)) {
+    if (IsCommentOrBlank(line)) continue;
+    ErrorContext ctx{.file = data_csv, .line = cursor.line_number()};
+    SplitFields(line, ',', &f);
+    if (f.size() != 7) {
+      throw Error(fmt::format("expected 7 values 'timestamp, wx, wy, wz, ax, ay, az', found {}",
+                              f.size()),
+                  ctx);
+    }
+    ImuSample s;
+    ctx.field = kFields[0];
+    s.t_ns = ParseInt64(f[0], ctx);
+    for (int k = 0; k < 3; ++k) {
+      ctx.field = kFields[1 + k];
+      s.gyro_rad_s[k] = ParseFiniteDouble(f[1 + k], ctx);
+      ctx.field = kFields[4 + k];
+      s.accel_m_s2[k] = ParseFiniteDouble(f[4 + k], ctx);
+    }
+    ctx.field = "timestamp";
+    if (!out.empty()) CheckIncreasing(out.back().t_ns, s.t_ns, ctx);
+    out.push_back(s);
+  }
+  return out;
+}
+
+std::vector<GnssPositionSample> ReadGnssCsv(const std::string& data_csv) {
+  static constexpr const char* kFields[] = {"timestamp", "x", "y", "z"};
+  const std::string text = ReadFileToString(data_csv);
+  LineCursor cursor(text);
+  std::string_view line;
+  std::vector<std::string_view> f;
+  std::vector<GnssPositionSample> out;
+  while (cursor.Next(&line)) {
+    if (IsCommentOrBlank(line)) continue;
+    ErrorContext ctx{.file = data_csv, .line = cursor.line_number()};
+    SplitFields(line, ',', &f);
+    if (f.size() < 4) {
+      throw Error(fmt::format("expected 'timestamp [ns], x, y, z', found {} fields", f.size()),
+                  ctx);
+    }
+    GnssPositionSample s;
+    ctx.field = kFields[0];
+    s.t_ns = ParseInt64(f[0], ctx);
+    for (int k = 0; k < 3; ++k) {
+      ctx.field = kFields[1 + k];
+      s.position_enu_m[k] = ParseFiniteDouble(f[1 + k], ctx);
+    }
+    ctx.field = "timestamp";
+    if (!out.empty()) CheckIncreasing(out.back().t_ns, s.t_ns, ctx);
+    out.push_back(s);
+  }
+  return out;
+}
+
+EurocDataset OpenEurocDataset(const std::string& dir, const EurocOpenOptions& options) {
+  fs::path root(dir);
+  if (!fs::is_directory(root)) throw Error("dataset folder not found", {.file = dir});
+  if (fs::is_directory(root / "mav0")) root /= "mav0";
+  EurocDataset ds;
+  ds.mav0_dir = root.string();
+  for (const char* cam : {"cam0", "cam1"}) {
+    const fs::path cdir = root / cam;
+    if (!fs::is_directory(cdir)) continue;
+    CameraStream stream;
+    stream.calibration = ReadCameraCalibration((cdir / "sensor.yaml").string());
+    stream.images = ReadImageList((cdir / "data.csv").string(), (cdir / "data").string(),
+                                  options.check_images_exist, options.drop_missing_images);
+    if (stream.images.empty()) {
+      throw Error("camera lists no images", {.file = (cdir / "data.csv").string()});
+    }
+    (std::string(cam) == "cam0" ? ds.cam0 : ds.cam1) = std::move(stream);
+  }
+  if (fs::is_directory(root / "imu0")) {
+    ds.imu_calibration = ReadImuCalibration((root / "imu0" / "sensor.yaml").string());
+    ds.imu_csv = (root / "imu0" / "data.csv").string();
+    if (!fs::is_regular_file(ds.imu_csv)) throw Error("missing IMU data", {.file = ds.imu_csv});
+  }
+  if (fs::is_regular_file(root / "gnss0" / "data.csv")) {
+    ds.gnss_csv = (root / "gnss0" / "data.csv").string();
+  }
+  if (fs::is_regular_file(root / "state_groundtruth_estimate0" / "data.csv")) {
+    ds.groundtruth_csv = (root / "state_groundtruth_estimate0" / "data.csv").string();
+  }
+  if (!ds.cam0 && !ds.imu_calibration) {
+    throw Error("not a EuRoC/ASL dataset: neither mav0/cam0 nor mav0/imu0 found", {.file = dir});
+  }
+  return ds;
+}
+
+}  // namespace optinav::io

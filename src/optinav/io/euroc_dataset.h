@@ -1,0 +1,91 @@
+// The EuRoC/ASL dataset layout:
+//   <seq>/mav0/{cam0,cam1}/{sensor.yaml,data.csv,data/*.png}
+//   <seq>/mav0/imu0/{sensor.yaml,data.csv}
+//   <seq>/mav0/gnss0/data.csv                      (optional; timestamp [ns], x, y, z in ENU)
+//   <seq>/mav0/state_groundtruth_estimate0/data.csv (optional)
+// sensor.yaml T_BS is body_from_sensor (it maps sensor-frame points into the body/IMU frame).
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "optinav/geometry/lie.h"
+#include "optinav/util/error.h"
+
+namespace optinav::io {
+
+struct CameraCalibration {
+  std::string camera_model = "pinhole";
+  int width = 0, height = 0;        // pixels
+  double fx = 0, fy = 0, cx = 0, cy = 0;  // pinhole intrinsics, pixels
+  // "radial-tangential" (k1 k2 p1 p2) or "equidistant" (k1..k4) or "none".
+  std::string distortion_model = "none";
+  std::vector<double> distortion;
+  double rate_hz = 0;
+  Rigid3d body_from_cam;
+};
+
+struct ImuCalibration {
+  double rate_hz = 0;
+  double gyroscope_noise_density = 0;      // rad / s / sqrt(Hz)
+  double gyroscope_random_walk = 0;        // rad / s^2 / sqrt(Hz)
+  double accelerometer_noise_density = 0;  // m / s^2 / sqrt(Hz)
+  double accelerometer_random_walk = 0;    // m / s^3 / sqrt(Hz)
+  Rigid3d body_from_imu;
+};
+
+struct ImageEntry {
+  int64_t t_ns = 0;
+  std::string path;  // absolute or relative to the working directory
+};
+
+struct ImuSample {
+  int64_t t_ns = 0;
+  Eigen::Vector3d gyro_rad_s = Eigen::Vector3d::Zero();
+  Eigen::Vector3d accel_m_s2 = Eigen::Vector3d::Zero();
+};
+
+struct GnssPositionSample {
+  int64_t t_ns = 0;
+  Eigen::Vector3d position_enu_m = Eigen::Vector3d::Zero();
+};
+
+struct CameraStream {
+  CameraCalibration calibration;
+  std::vector<ImageEntry> images;
+};
+
+struct EurocDataset {
+  std::string mav0_dir;
+  std::optional<CameraStream> cam0, cam1;
+  std::optional<ImuCalibration> imu_calibration;
+  std::string imu_csv;           // empty when there is no imu0
+  std::string gnss_csv;          // empty when there is no gnss0
+  std::string groundtruth_csv;   // empty when there is no ground truth
+};
+
+struct EurocOpenOptions {
+  bool check_images_exist = true;  // stat every listed image
+  // false: a listed but missing image is an Error naming the csv line. true: such entries are
+  // dropped with a warning (real clips, like V1_01_micro's cam1, list frames they do not ship).
+  bool drop_missing_images = false;
+};
+
+// Opens `dir` (the sequence folder holding mav0/, or mav0/ itself). Throws Error naming the file
+// when the layout, a yaml or a csv is malformed, or a listed image is missing. At least one
+// camera or the IMU must be present.
+EurocDataset OpenEurocDataset(const std::string& dir, const EurocOpenOptions& options = {});
+
+CameraCalibration ReadCameraCalibration(const std::string& sensor_yaml);
+ImuCalibration ReadImuCalibration(const std::string& sensor_yaml);
+// cam data.csv: "timestamp [ns], filename"; paths resolved against <cam>/data/.
+std::vector<ImageEntry> ReadImageList(const std::string& data_csv, const std::string& image_dir,
+                                      bool check_exist, bool drop_missing = false);
+// imu0 data.csv: "timestamp [ns], wx, wy, wz [rad/s], ax, ay, az [m/s^2]".
+std::vector<ImuSample> ReadImuCsv(const std::string& data_csv);
+// gnss0 data.csv: "timestamp [ns], x, y, z" (local ENU metres).
+std::vector<GnssPositionSample> ReadGnssCsv(const std::string& data_csv);
+
+}  // namespace optinav::io

@@ -1,0 +1,53 @@
+// Fast, strict parsing of line-oriented numeric text files. Every failure throws
+// optinav::Error naming the file, the 1-based line and the field.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "optinav/util/error.h"
+
+namespace optinav::io {
+
+// Reads a whole file into memory; throws Error if it cannot be opened or read.
+std::string ReadFileToString(const std::string& path);
+
+// Iterates the lines of a text buffer (LF or CRLF), tracking line numbers.
+class LineCursor {
+ public:
+  explicit LineCursor(std::string_view text) : text_(text) {}
+  // Next line without its terminator; false at the end.
+  bool Next(std::string_view* line);
+  int64_t line_number() const { return line_number_; }
+
+ private:
+  std::string_view text_;
+  size_t pos_ = 0;
+  int64_t line_number_ = 0;
+};
+
+// Trims spaces and tabs.
+std::string_view Trim(std::string_view s);
+// True for blank lines and lines whose first non-blank character is '#'.
+bool IsCommentOrBlank(std::string_view line);
+// Splits on runs of spaces/tabs (delim == ' ') or on a single character (e.g. ','), trimming
+// each field. Reuses `fields`.
+void SplitFields(std::string_view line, char delim, std::vector<std::string_view>* fields);
+
+// Strict finite double: the whole field must be a number; NaN and infinities are rejected.
+double ParseFiniteDouble(std::string_view field, const ErrorContext& ctx);
+// Whole-field signed 64-bit integer.
+int64_t ParseInt64(std::string_view field, const ErrorContext& ctx);
+// Decimal seconds ("1305031102.175304", "1.4037155e+09") to integer nanoseconds, exactly
+// (rounded half away from zero at the nanosecond), without going through a double.
+int64_t ParseSecondsToNs(std::string_view field, const ErrorContext& ctx);
+// Integer nanoseconds to seconds text with 9 decimals (exact).
+std::string FormatNsAsSeconds(int64_t t_ns);
+
+// Writes `content` to `path` through a temporary file and a rename, so a reader never sees a
+// half-written file and an existing file survives a failed write.
+void WriteFileAtomically(const std::string& path, const std::string& content);
+
+}  // namespace optinav::io
