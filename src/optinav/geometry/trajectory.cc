@@ -17,8 +17,19 @@ void Trajectory::Add(int64_t t, const Rigid3d& pose) {
 
 void Trajectory::Add(const Rigid3d& pose) {
   positions.push_back(pose.translation);
-  rotations.push_back(pose.rotation);
+  rotations.push_back(pose.rotation.toRotationMatrix());
 }
+
+void Trajectory::AddMatrix(const Eigen::Matrix3d& rotation, const Eigen::Vector3d& position) {
+  positions.push_back(position);
+  rotations.push_back(rotation);
+}
+
+Eigen::Quaterniond Trajectory::quaternion(size_t i) const {
+  return Eigen::Quaterniond(rotations[i]).normalized();
+}
+
+Rigid3d Trajectory::pose(size_t i) const { return {quaternion(i), positions[i]}; }
 
 Trajectory Trajectory::Subset(const std::vector<size_t>& indices) const {
   Trajectory out;
@@ -32,9 +43,13 @@ Trajectory Trajectory::Subset(const std::vector<size_t>& indices) const {
 }
 
 void Trajectory::Transform(const Sim3d& s) {
-  const Eigen::Matrix3d sr = s.scale * s.rotation.toRotationMatrix();
-  for (auto& p : positions) p = sr * p + s.translation;
-  for (auto& q : rotations) q = (s.rotation * q).normalized();
+  Transform(s.scale, s.rotation.toRotationMatrix(), s.translation);
+}
+
+void Trajectory::Transform(double scale, const Eigen::Matrix3d& r, const Eigen::Vector3d& t) {
+  const Eigen::Matrix3d sr = scale * r;
+  for (auto& p : positions) p = sr * p + t;
+  for (auto& rot : rotations) rot = r * rot;
 }
 
 double Trajectory::PathLength() const {

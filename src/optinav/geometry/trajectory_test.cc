@@ -20,6 +20,7 @@ TEST(Trajectory, InterpolateAtTimestamp) {
   ASSERT_TRUE(mid.has_value());
   EXPECT_TRUE(mid->translation.isApprox(Eigen::Vector3d(1.5, 0, 0)));
   EXPECT_NEAR(LogSO3(mid->rotation).z(), 0.15, 1e-12);
+  EXPECT_NEAR(LogSO3(t.quaternion(3)).z(), 0.3, 1e-12);
   EXPECT_TRUE(t.InterpolateAt(0)->translation.isZero());
   EXPECT_TRUE(t.InterpolateAt(4'000'000'000)->translation.isApprox(Eigen::Vector3d(4, 0, 0)));
   EXPECT_FALSE(t.InterpolateAt(-1).has_value());

@@ -132,7 +132,8 @@ Trajectory ReadKitti(const std::string& path, const std::string& times_path) {
       ctx.field = "rotation";
       throw Error("rotation block is singular", ctx);
     }
-    traj.Add(Rigid3d::FromMatrix(m));
+    // Kept as written (evo does the same); only a singular block is rejected above.
+    traj.AddMatrix(r, m.col(3));
   }
   if (times_path.empty()) return traj;
 
@@ -260,7 +261,7 @@ void WriteTrajectory(const std::string& path, const Trajectory& traj, Trajectory
       out += "# timestamp tx ty tz qx qy qz qw\n";
       for (size_t i = 0; i < traj.size(); ++i) {
         const auto& p = traj.positions[i];
-        const auto& q = traj.rotations[i];
+        const Eigen::Quaterniond q = traj.quaternion(i);
         fmt::format_to(std::back_inserter(out), "{} {} {} {} {} {} {} {}\n",
                        FormatNsAsSeconds(traj.t_ns[i]), p.x(), p.y(), p.z(), q.x(), q.y(), q.z(),
                        q.w());
@@ -271,14 +272,15 @@ void WriteTrajectory(const std::string& path, const Trajectory& traj, Trajectory
              "q_RS_y [],q_RS_z []\n";
       for (size_t i = 0; i < traj.size(); ++i) {
         const auto& p = traj.positions[i];
-        const auto& q = traj.rotations[i];
+        const Eigen::Quaterniond q = traj.quaternion(i);
         fmt::format_to(std::back_inserter(out), "{},{},{},{},{},{},{},{}\n", traj.t_ns[i], p.x(),
                        p.y(), p.z(), q.w(), q.x(), q.y(), q.z());
       }
       break;
     case TrajectoryFormat::kKitti:
       for (size_t i = 0; i < traj.size(); ++i) {
-        const Eigen::Matrix<double, 3, 4> m = traj.pose(i).ToMatrix3x4();
+        Eigen::Matrix<double, 3, 4> m;
+        m << traj.rotations[i], traj.positions[i];
         fmt::format_to(std::back_inserter(out), "{} {} {} {} {} {} {} {} {} {} {} {}\n", m(0, 0),
                        m(0, 1), m(0, 2), m(0, 3), m(1, 0), m(1, 1), m(1, 2), m(1, 3), m(2, 0),
                        m(2, 1), m(2, 2), m(2, 3));

@@ -53,20 +53,22 @@ TEST(ReadTrajectory, ValuesMatchTheTextOfTheFirstLines) {
   EXPECT_EQ(tum.t_ns[0], 1305031102160407000);
   EXPECT_TRUE(tum.positions[0].isApprox(Eigen::Vector3d(1.344379, 0.627206, 1.661754)));
   const Eigen::Vector4d q = Eigen::Vector4d(0.658249, 0.611043, -0.294444, -0.326553).normalized();
-  EXPECT_NEAR(tum.rotations[0].x(), q[0], 1e-12);
-  EXPECT_NEAR(tum.rotations[0].w(), q[3], 1e-12);
+  EXPECT_NEAR(tum.quaternion(0).x(), q[0], 1e-12);
+  EXPECT_NEAR(tum.quaternion(0).w(), q[3], 1e-12);
 
   // V102_groundtruth.csv line 2: 1403715524907143168,0.515356,1.996773,0.971104,
   // 0.161996,0.789985,-0.205376,0.554528,...  (q in w x y z)
   const Trajectory csv = ReadTrajectory(Traj("V102_groundtruth.csv"));
   EXPECT_EQ(csv.t_ns[0], 1403715524907143168);
   EXPECT_TRUE(csv.positions[0].isApprox(Eigen::Vector3d(0.515356, 1.996773, 0.971104)));
-  EXPECT_NEAR(csv.rotations[0].w(), 0.161996, 1e-5);
-  EXPECT_NEAR(csv.rotations[0].z(), 0.554528, 1e-5);
+  EXPECT_NEAR(csv.quaternion(0).w(), 0.161996, 1e-5);
+  EXPECT_NEAR(csv.quaternion(0).z(), 0.554528, 1e-5);
 
   // KITTI_00_ORB.txt line 2 translation column: -0.003019783 -0.005097120 0.666445315
   const Trajectory kitti = ReadTrajectory(Traj("KITTI_00_ORB.txt"));
   EXPECT_TRUE(kitti.positions[1].isApprox(Eigen::Vector3d(-0.003019783, -0.005097120, 0.666445315)));
+  // Rotations are kept exactly as written (0.999999940 on the diagonal of line 1).
+  EXPECT_EQ(kitti.rotations[0](1, 1), 0.999999940);
 }
 
 TEST(ReadTrajectory, KittiWithTimesFile) {
@@ -97,7 +99,7 @@ TEST(WriteTrajectory, RoundTripsAllFormatsExactly) {
     ASSERT_EQ(back.size(), t.size());
     for (size_t i = 0; i < t.size(); ++i) {
       EXPECT_LT((back.positions[i] - t.positions[i]).norm(), 1e-14);
-      EXPECT_LT(back.rotations[i].angularDistance(t.rotations[i]), 1e-7);
+      EXPECT_LT(back.quaternion(i).angularDistance(t.quaternion(i)), 1e-7);
       if (fmt != TrajectoryFormat::kKitti) {
         EXPECT_EQ(back.t_ns[i], t.t_ns[i]);
       }
