@@ -1,0 +1,100 @@
+#!/usr/bin/env bash
+# End-to-end tests of the optinav command line: outputs, exit codes and error messages.
+# usage: cli_test.sh OPTINAV_BINARY SHARED_DATA_DIR
+set -u
+BIN="$1"
+DATA="${OPTINAV_SHARED_DATA:-$2}"
+T="$DATA/trajectories"
+WORK="$(mktemp -d)"
+trap 'rm -rf "$WORK"' EXIT
+failures=0
+
+fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
+
+# expect_ok "description" cmd...
+expect_ok() {
+  local what="$1"; shift
+  if ! "$@" >"$WORK/out.txt" 2>"$WORK/err.txt"; then
+    fail "$what: exit $?"; cat "$WORK/err.txt"
+  fi
+}
+
+# expect_error "description" "expected stderr substring" cmd...
+expect_error() {
+  local what="$1" needle="$2"; shift 2
+  "$@" >"$WORK/out.txt" 2>"$WORK/err.txt"
+  local rc=$?
+  if [[ $rc -eq 0 ]]; then fail "$what: exit 0, expected an error"; return; fi
+  if [[ $rc -ge 128 ]]; then fail "$what: crashed (exit $rc)"; return; fi
+  if ! grep -qF -- "$needle" "$WORK/err.txt"; then
+    fail "$what: stderr lacks '$needle':"; cat "$WORK/err.txt"
+  fi
+}
+
+[[ -d "$T" ]] || { echo "shared data not found at $DATA"; exit 1; }
+
+# --- Happy paths.
+expect_ok "ape tum se3" "$BIN" eval ape "$T/freiburg1_xyz-groundtruth.txt" \
+  "$T/freiburg1_xyz-rgbdslam.txt" --align se3 --json "$WORK/ape.json" --plot "$WORK/ape.svg"
+grep -q "rmse" "$WORK/out.txt" || fail "ape table has no rmse"
+for key in '"n"' '"rmse"' '"mean"' '"median"' '"std"' '"min"' '"max"' '"sse"' '"alignment"'; do
+  grep -q "$key" "$WORK/ape.json" || fail "ape.json lacks $key"
+done
+grep -q '"mode": "se3"' "$WORK/ape.json" || fail "ape.json alignment mode"
+grep -q "</svg>" "$WORK/ape.svg" || fail "ape.svg incomplete"
+
+expect_ok "rpe kitti 10 m" "$BIN" eval rpe "$T/KITTI_00_gt.txt" "$T/KITTI_00_ORB.txt" \
+  --align se3 --delta 10 --unit m --json "$WORK/rpe.json" --plot "$WORK/rpe.svg" --plot-plane xz
+grep -q '"delta_unit": "m"' "$WORK/rpe.json" || fail "rpe.json delta_unit"
+expect_ok "ape euroc vs tum, sim3, first 100" "$BIN" eval ape "$T/V102_groundtruth.csv" \
+  "$T/V102.txt" --align sim3 --n-to-align 100 --align-origin --pose-relation full
+expect_ok "kitti with times and all pairs" "$BIN" eval rpe "$T/KITTI_00_gt.txt" \
+  "$T/KITTI_00_SPTAM.txt" --ref-times "$T/KITTI_00_gt_times.txt" \
+  --est-times "$T/KITTI_00_gt_times.txt" --delta 1 --unit s --all-pairs
+expect_ok "help" "$BIN" eval ape --help
+expect_ok "version" "$BIN" version
+
+# --- Bad input: clear message, non-zero exit, no crash.
+printf '1.0 0 0 0 0 0 0 1\n2.0 0 0 0 0 0 1\n' > "$WORK/short.txt"
+expect_error "malformed line" "short.txt:2" "$BIN" eval ape "$WORK/short.txt" "$WORK/short.txt"
+printf '1.0 0 0 0 0 0 0 1\n2.0 nan 0 0 0 0 0 1\n3.0 0 0 0 0 0 0 1\n' > "$WORK/nan.txt"
+expect_error "nan value" "nan.txt:2: field 'x'" "$BIN" eval ape "$WORK/nan.txt" "$WORK/nan.txt"
+printf '1.0 0 0 0 0 0 0 1\n3.0 0 0 0 0 0 0 1\n2.0 0 0 0 0 0 0 1\n' > "$WORK/back.txt"
+expect_error "backwards time" "back.txt:3" "$BIN" eval ape "$WORK/back.txt" "$WORK/back.txt"
+: > "$WORK/empty.txt"
+expect_error "empty file" "empty" "$BIN" eval ape "$WORK/empty.txt" "$T/fr2_desk_ORB.txt"
+expect_error "no overlap" "no matching timestamps" "$BIN" eval ape \
+  "$T/freiburg1_xyz-groundtruth.txt" "$T/fr2_desk_ORB.txt"
+printf '1.0 0 0 0 0 0 0 1\n2.0 1 0 0 0 0 0 1\n' > "$WORK/two.txt"
+expect_error "too few for alignment" "at least 3" "$BIN" eval ape "$WORK/two.txt" \
+  "$WORK/two.txt" --align se3
+head -n 100 "$T/KITTI_00_ORB.txt" > "$WORK/kitti100.txt"
+expect_error "kitti count mismatch" "same number of poses" "$BIN" eval ape \
+  "$T/KITTI_00_gt.txt" "$WORK/kitti100.txt"
+expect_error "unknown format flag" "--est-format" "$BIN" eval ape "$WORK/two.txt" \
+  "$WORK/two.txt" --est-format bag
+printf '1 2 3 4 5\n' > "$WORK/five.txt"
+expect_error "undetectable format" "cannot detect format" "$BIN" eval ape "$WORK/five.txt" \
+  "$WORK/two.txt"
+expect_error "missing file" "cannot open" "$BIN" eval ape "$WORK/nope.txt" "$WORK/two.txt"
+expect_error "bad delta" "--delta" "$BIN" eval rpe "$WORK/two.txt" "$WORK/two.txt" --delta 0
+expect_error "unknown command" "unknown command" "$BIN" fly
+
+# A failed run never clobbers an existing output.
+echo "keep me" > "$WORK/keep.json"
+"$BIN" eval ape "$WORK/nan.txt" "$WORK/nan.txt" --json "$WORK/keep.json" >/dev/null 2>&1
+grep -q "keep me" "$WORK/keep.json" || fail "existing --json output was overwritten by a failed run"
+
+# --- The demo.
+expect_ok "demo" "$BIN" demo --out "$WORK/demo" --duration 60
+for f in groundtruth.csv estimate.tum ape_se3.json ape_se3.svg rpe_10m.json; do
+  [[ -s "$WORK/demo/$f" ]] || fail "demo did not write $f"
+done
+# The demo's estimate, evaluated through the public command, gives the demo's own figure.
+"$BIN" eval ape "$WORK/demo/groundtruth.csv" "$WORK/demo/estimate.tum" --align se3 \
+  --json "$WORK/again.json" >/dev/null 2>&1 || fail "re-evaluating the demo output"
+a=$(grep '"rmse"' "$WORK/demo/ape_se3.json"); b=$(grep '"rmse"' "$WORK/again.json")
+[[ "$a" == "$b" ]] || fail "demo rmse ($a) differs from optinav eval ($b)"
+
+if [[ $failures -gt 0 ]]; then echo "$failures failure(s)"; exit 1; fi
+echo "all CLI checks passed"

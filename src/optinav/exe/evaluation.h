@@ -1,0 +1,41 @@
+// The evaluation job shared by `optinav eval` and `optinav demo`: read, associate, align,
+// compute APE or RPE, print a table, optionally write JSON and an SVG plot.
+#pragma once
+
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "optinav/eval/metrics.h"
+#include "optinav/io/trajectory_io.h"
+
+namespace optinav {
+
+struct EvaluationSettings {
+  enum class Metric { kApe, kRpe };
+  Metric metric = Metric::kApe;
+  std::string ref_path, est_path;
+  io::TrajectoryReadOptions ref_read, est_read;
+  eval::AssociationOptions association;
+  eval::AlignmentOptions alignment;
+  eval::PoseRelation relation = eval::PoseRelation::kTranslation;
+  eval::RpeOptions rpe;  // used for kRpe (its relation is overwritten by `relation`)
+  std::string json_path, plot_path, plot_plane = "xy", aligned_out_path;
+};
+
+struct EvaluationOutcome {
+  size_t ref_poses = 0, est_poses = 0;  // as read
+  eval::SyncedPair synced;  // est aligned in place
+  eval::AlignmentResult alignment;
+  eval::ErrorSeries series;
+  std::string title;     // "APE w.r.t. translation part (m)"
+  nlohmann::json json;   // the document written with --json
+};
+
+// Runs the job; throws optinav::Error on bad input. Writes the optional outputs atomically.
+EvaluationOutcome RunEvaluation(const EvaluationSettings& settings);
+
+// The human-readable table (as evo prints it).
+std::string FormatEvaluationTable(const EvaluationSettings& settings,
+                                  const EvaluationOutcome& outcome);
+
+}  // namespace optinav
