@@ -65,8 +65,7 @@ double RelationError(const MatPose& e, PoseRelation relation) {
 
 }  // namespace
 
-SyncedPair Synchronize(const Trajectory& ref, const Trajectory& est,
-                       const AssociationOptions& options) {
+SyncedPair Synchronize(Trajectory ref, Trajectory est, const AssociationOptions& options) {
   if (ref.empty() || est.empty()) throw Error("cannot associate an empty trajectory");
   SyncedPair out;
   out.max_pairs = std::min(ref.size(), est.size());
@@ -80,8 +79,8 @@ SyncedPair Synchronize(const Trajectory& ref, const Trajectory& est,
     out.ref_indices.resize(ref.size());
     for (size_t i = 0; i < ref.size(); ++i) out.ref_indices[i] = i;
     out.est_indices = out.ref_indices;
-    out.ref = ref;
-    out.est = est;
+    out.ref = std::move(ref);
+    out.est = std::move(est);
     return out;
   }
   if (!(options.max_diff_s >= 0) || !std::isfinite(options.t_offset_s)) {
@@ -103,10 +102,11 @@ SyncedPair Synchronize(const Trajectory& ref, const Trajectory& est,
   size_t lo = 0;
   for (size_t s = 0; s < shrt.size(); ++s) {
     const int64_t target = shrt.t_ns[s] - off_long;
-    // Short stamps never go backwards, so the search can start where the last one ended.
-    const size_t k = static_cast<size_t>(std::lower_bound(L.begin() + lo, L.end(), target) -
-                                         L.begin());
-    lo = k > 0 ? k - 1 : 0;
+    // Short stamps never go backwards, so the first stamp >= target only moves forward: a
+    // linear walk is amortised O(n + m) and cache friendly.
+    size_t k = lo;
+    while (k < L.size() && L[k] < target) ++k;
+    lo = k;
     auto evo_diff = [&](size_t j) {
       return std::abs((EvoSeconds(L[j]) + off_long_s) - EvoSeconds(shrt.t_ns[s]));
     };
@@ -144,8 +144,10 @@ SyncedPair Synchronize(const Trajectory& ref, const Trajectory& est,
   }
   out.ref_indices = est_longer ? idx_short : idx_long;
   out.est_indices = est_longer ? idx_long : idx_short;
-  out.ref = ref.Subset(out.ref_indices);
-  out.est = est.Subset(out.est_indices);
+  ref.KeepOnly(out.ref_indices);
+  est.KeepOnly(out.est_indices);
+  out.ref = std::move(ref);
+  out.est = std::move(est);
   return out;
 }
 

@@ -38,8 +38,8 @@ struct SyncedPair {
 };
 
 // Throws Error when nothing matches, or when index matching is needed and the sizes differ.
-SyncedPair Synchronize(const Trajectory& ref, const Trajectory& est,
-                       const AssociationOptions& options = {});
+// Takes the trajectories by value: pass them with std::move to filter them in place.
+SyncedPair Synchronize(Trajectory ref, Trajectory est, const AssociationOptions& options = {});
 
 enum class AlignMode { kNone, kSe3, kSim3, kScale, kPosYaw };
 std::optional<AlignMode> ParseAlignMode(const std::string& name);  // none|se3|sim3|scale|posyaw

@@ -31,11 +31,11 @@ std::string AlignmentDescription(const eval::AlignmentResult& a, size_t pairs) {
 EvaluationOutcome RunEvaluation(const EvaluationSettings& st) {
   using Metric = EvaluationSettings::Metric;
   EvaluationOutcome out;
-  const Trajectory ref = io::ReadTrajectory(st.ref_path, st.ref_read);
-  const Trajectory est = io::ReadTrajectory(st.est_path, st.est_read);
+  Trajectory ref = io::ReadTrajectory(st.ref_path, st.ref_read);
+  Trajectory est = io::ReadTrajectory(st.est_path, st.est_read);
   out.ref_poses = ref.size();
   out.est_poses = est.size();
-  out.synced = eval::Synchronize(ref, est, st.association);
+  out.synced = eval::Synchronize(std::move(ref), std::move(est), st.association);
   out.alignment = eval::AlignTrajectory(out.synced.ref, &out.synced.est, st.alignment);
   const std::string unit = eval::PoseRelationUnit(st.relation);
   if (st.metric == Metric::kApe) {

@@ -42,6 +42,26 @@ Trajectory Trajectory::Subset(const std::vector<size_t>& indices) const {
   return out;
 }
 
+void Trajectory::KeepOnly(const std::vector<size_t>& indices) {
+  bool increasing = true;
+  for (size_t k = 1; k < indices.size() && increasing; ++k) increasing = indices[k] > indices[k - 1];
+  if (!increasing) {
+    *this = Subset(indices);
+    return;
+  }
+  // indices[k] >= k, so copying forward never reads an overwritten element.
+  for (size_t k = 0; k < indices.size(); ++k) {
+    const size_t i = indices[k];
+    if (i == k) continue;
+    if (has_timestamps()) t_ns[k] = t_ns[i];
+    positions[k] = positions[i];
+    rotations[k] = rotations[i];
+  }
+  if (has_timestamps()) t_ns.resize(indices.size());
+  positions.resize(indices.size());
+  rotations.resize(indices.size());
+}
+
 void Trajectory::Transform(const Sim3d& s) {
   Transform(s.scale, s.rotation.toRotationMatrix(), s.translation);
 }

@@ -33,6 +33,8 @@ struct Trajectory {
 
   // Keeps the poses at `indices` (in that order, repeats allowed).
   Trajectory Subset(const std::vector<size_t>& indices) const;
+  // The same in place; no allocation when the indices strictly increase.
+  void KeepOnly(const std::vector<size_t>& indices);
 
   // Left-multiplies every pose by a similarity (scale applies to positions only).
   void Transform(const Sim3d& target_from_source);

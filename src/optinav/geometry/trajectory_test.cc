@@ -33,6 +33,12 @@ TEST(Trajectory, PathLengthSubsetTransform) {
   const Trajectory s = t.Subset({4, 0, 0});
   EXPECT_EQ(s.size(), 3u);
   EXPECT_EQ(s.t_ns[0], 4'000'000'000);
+  Trajectory in_place = t, repeated = t;
+  in_place.KeepOnly({1, 3, 4});
+  EXPECT_EQ(in_place.t_ns, (std::vector<int64_t>{1'000'000'000, 3'000'000'000, 4'000'000'000}));
+  EXPECT_TRUE(in_place.positions[1].isApprox(Eigen::Vector3d(3, 0, 0)));
+  repeated.KeepOnly({2, 2, 0});
+  EXPECT_EQ(repeated.t_ns, (std::vector<int64_t>{2'000'000'000, 2'000'000'000, 0}));
   Sim3d sim;
   sim.scale = 2;
   sim.translation = Eigen::Vector3d(0, 1, 0);

@@ -1,6 +1,12 @@
 #include "optinav/io/text_parse.h"
 
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <charconv>
+#include <cstring>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -8,6 +14,35 @@
 #include <system_error>
 
 namespace optinav::io {
+
+MappedFile::MappedFile(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) throw Error("is a directory, not a file", {.file = path});
+  const int fd = ::open(path.c_str(), O_RDONLY);
+  if (fd < 0) throw Error("cannot open file", {.file = path});
+  struct stat st {};
+  if (::fstat(fd, &st) != 0) {
+    ::close(fd);
+    throw Error("cannot stat file", {.file = path});
+  }
+  size_ = static_cast<size_t>(st.st_size);
+  if (size_ > 0 && S_ISREG(st.st_mode)) {
+    void* p = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE | MAP_POPULATE, fd, 0);
+    if (p != MAP_FAILED) {
+      data_ = static_cast<const char*>(p);
+      ::madvise(p, size_, MADV_SEQUENTIAL);
+    }
+  }
+  ::close(fd);
+  if (data_ == nullptr) {  // not mappable (pipe, special file) or empty: read it instead
+    fallback_ = ReadFileToString(path);
+    size_ = fallback_.size();
+  }
+}
+
+MappedFile::~MappedFile() {
+  if (data_ != nullptr) ::munmap(const_cast<char*>(data_), size_);
+}
 
 std::string ReadFileToString(const std::string& path) {
   std::error_code ec;
@@ -72,6 +107,149 @@ void SplitFields(std::string_view line, char delim, std::vector<std::string_view
     if (end == std::string_view::npos) break;
     start = end + 1;
   }
+}
+
+namespace {
+
+constexpr double kPow10[] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,
+                             1e8,  1e9,  1e10, 1e11, 1e12, 1e13, 1e14, 1e15,
+                             1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
+
+// Parses a decimal number at [p, end). Clinger's fast path: with at most 15 significant digits
+// and a power of ten up to 22 the result of one multiplication or division is correctly
+// rounded; anything else goes to std::from_chars. Returns the end of the number or nullptr.
+// True when the 8 bytes at p are all ASCII digits.
+inline bool IsEightDigits(uint64_t v) {
+  return (((v & 0xF0F0F0F0F0F0F0F0ULL) | (((v + 0x0606060606060606ULL) & 0xF0F0F0F0F0F0F0F0ULL) >> 4)) ==
+          0x3333333333333333ULL);
+}
+
+// Value of 8 ASCII digits (little-endian load), three multiply-shift steps instead of eight
+// dependent multiply-adds.
+inline uint64_t EightDigitsValue(uint64_t v) {
+  v -= 0x3030303030303030ULL;
+  v = (v * 10) + (v >> 8);
+  v = (((v & 0x000000FF000000FFULL) * 0x000F424000000064ULL) +
+       (((v >> 16) & 0x000000FF000000FFULL) * 0x0000271000000001ULL)) >> 32;
+  return v;
+}
+
+// Accumulates the decimal digits at p into *m (which may overflow beyond 19 digits: callers
+// check the digit count). Returns the first non-digit.
+inline const char* ParseDigits(const char* p, const char* end, uint64_t* m) {
+  uint64_t acc = *m;
+  while (end - p >= 8) {
+    uint64_t v;
+    std::memcpy(&v, p, 8);
+    if (!IsEightDigits(v)) break;
+    acc = acc * 100000000ULL + EightDigitsValue(v);
+    p += 8;
+  }
+  while (p < end && static_cast<unsigned>(*p - '0') < 10u) acc = acc * 10 + static_cast<unsigned>(*p++ - '0');
+  *m = acc;
+  return p;
+}
+
+const char* FastDouble(const char* p, const char* end, double* out) {
+  const char* start = p;
+  bool negative = false;
+  if (p < end && (*p == '-' || *p == '+')) negative = *p++ == '-';
+  uint64_t m = 0;
+  const char* digits_begin = p;
+  p = ParseDigits(p, end, &m);
+  int n_digits = static_cast<int>(p - digits_begin);
+  int exp10 = 0;
+  if (p < end && *p == '.') {
+    const char* frac_begin = ++p;
+    p = ParseDigits(p, end, &m);
+    exp10 = -static_cast<int>(p - frac_begin);
+    n_digits -= exp10;
+  }
+  if (n_digits == 0) return nullptr;
+  // Exact when no overflow (<= 19 digits), m representable (<= 2^53) and 10^-exp10 exact.
+  if (n_digits <= 19 && m <= (uint64_t{1} << 53) && exp10 >= -22 &&
+      !(p < end && (*p == 'e' || *p == 'E'))) {
+    const double v = static_cast<double>(m) / kPow10[-exp10];
+    *out = negative ? -v : v;
+    return p;
+  }
+  const char* b = start;
+  if (b < end && *b == '+') ++b;
+  const auto [ptr, ec] = std::from_chars(b, end, *out);
+  if (ec != std::errc() || !std::isfinite(*out)) return nullptr;
+  return ptr;
+}
+
+inline bool IsBlank(char c) { return c == ' ' || c == '\t'; }
+
+}  // namespace
+
+bool ParseNumberLine(std::string_view line, char delim, int count, bool first_as_seconds,
+                     bool first_as_int_ns, int64_t* t_ns, double* out, int min_count) {
+  const char* p = line.data();
+  const char* end = p + line.size();
+  const int needed = min_count < 0 ? count : min_count;
+  int k = 0;
+  bool after_delim = false;
+  while (true) {
+    while (p < end && IsBlank(*p)) ++p;
+    if (p == end) {
+      if (after_delim) return false;  // a trailing empty field
+      break;
+    }
+    if (k == count) return min_count >= 0;  // extra fields: fine only with min_count
+    const char* token_end = p;
+    if (k == 0 && (first_as_seconds || first_as_int_ns)) {
+      while (token_end < end && !IsBlank(*token_end) && *token_end != delim) ++token_end;
+      const std::string_view token(p, static_cast<size_t>(token_end - p));
+      if (first_as_int_ns) {
+        const auto [ptr, ec] = std::from_chars(p, token_end, *t_ns);
+        if (ec != std::errc() || ptr != token_end) return false;
+      } else {
+        // Seconds with at most 9 decimals: integer arithmetic, else the general parser.
+        const char* q = p;
+        uint64_t whole = 0, frac = 0;
+        q = ParseDigits(q, token_end, &whole);
+        const bool whole_ok = q - p <= 11;
+        bool any_digit = q > p;
+        int frac_digits = 0;
+        if (q < token_end && *q == '.') {
+          const char* f0 = ++q;
+          q = ParseDigits(q, token_end, &frac);
+          frac_digits = static_cast<int>(q - f0);
+          any_digit = any_digit || frac_digits > 0;
+        }
+        any_digit = any_digit && whole_ok && frac_digits <= 9;
+        if (any_digit && q == token_end) {
+          static constexpr int64_t kScale[] = {1000000000, 100000000, 10000000, 1000000, 100000,
+                                               10000,      1000,      100,      10,      1};
+          *t_ns = static_cast<int64_t>(whole) * 1'000'000'000 +
+                  static_cast<int64_t>(frac) * kScale[frac_digits];
+        } else {
+          try {
+            *t_ns = ParseSecondsToNs(token, {});
+          } catch (const Error&) {
+            return false;
+          }
+        }
+      }
+    } else {
+      token_end = FastDouble(p, end, &out[k]);
+      if (token_end == nullptr) return false;
+    }
+    p = token_end;
+    ++k;
+    while (p < end && IsBlank(*p)) ++p;
+    if (delim != ' ') {
+      if (p == end) break;
+      if (*p != delim) return false;
+      ++p;
+      after_delim = true;
+    } else if (p < end && !IsBlank(p[-1]) && p == token_end) {
+      return false;  // garbage glued to a number, e.g. "1.0abc"
+    }
+  }
+  return k >= needed;
 }
 
 double ParseFiniteDouble(std::string_view field, const ErrorContext& ctx) {

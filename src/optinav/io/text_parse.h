@@ -14,6 +14,24 @@ namespace optinav::io {
 // Reads a whole file into memory; throws Error if it cannot be opened or read.
 std::string ReadFileToString(const std::string& path);
 
+// A read-only view of a whole file, memory-mapped when possible (no copy); throws Error if it
+// cannot be opened.
+class MappedFile {
+ public:
+  explicit MappedFile(const std::string& path);
+  ~MappedFile();
+  MappedFile(const MappedFile&) = delete;
+  MappedFile& operator=(const MappedFile&) = delete;
+  std::string_view view() const {
+    return data_ ? std::string_view(data_, size_) : std::string_view(fallback_);
+  }
+
+ private:
+  const char* data_ = nullptr;
+  size_t size_ = 0;
+  std::string fallback_;
+};
+
 // Iterates the lines of a text buffer (LF or CRLF), tracking line numbers.
 class LineCursor {
  public:
@@ -43,6 +61,14 @@ int64_t ParseInt64(std::string_view field, const ErrorContext& ctx);
 // Decimal seconds ("1305031102.175304", "1.4037155e+09") to integer nanoseconds, exactly
 // (rounded half away from zero at the nanosecond), without going through a double.
 int64_t ParseSecondsToNs(std::string_view field, const ErrorContext& ctx);
+// Fast path for a line of numbers separated by `delim` (' ' = runs of blanks, else that char
+// with optional blanks around it): parses exactly `count` finite doubles into `out`, with
+// field 0 optionally parsed as seconds -> ns (`first_as_seconds`) or integer ns
+// (`first_as_int_ns`) into *t_ns. Returns false on any irregularity (wrong count, bad token,
+// non-finite), leaving the caller to re-parse slowly for a precise error message.
+bool ParseNumberLine(std::string_view line, char delim, int count, bool first_as_seconds,
+                     bool first_as_int_ns, int64_t* t_ns, double* out, int min_count = -1);
+
 // Integer nanoseconds to seconds text with 9 decimals (exact).
 std::string FormatNsAsSeconds(int64_t t_ns);
 

@@ -2,7 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <fmt/format.h>
+
 #include <filesystem>
+#include <random>
 
 #include "optinav/util/testing.h"
 
@@ -85,6 +88,53 @@ TEST(WriteFileAtomically, WritesAndNeverLeavesPartialFiles) {
   EXPECT_FALSE(std::filesystem::exists(dir / "d.tmp"));
   EXPECT_THROW(ReadFileToString((dir / "missing").string()), Error);
   EXPECT_THROW(ReadFileToString(dir.string()), Error);
+}
+
+}  // namespace
+}  // namespace optinav::io
+
+namespace optinav::io {
+namespace {
+
+TEST(ParseNumberLine, FastPathAgreesWithStrictParsers) {
+  double v[8];
+  int64_t t = 0;
+  ASSERT_TRUE(ParseNumberLine("1305031102.175304 1.344379 -0.627206 1e-3 0.5 0.1 -0.2 0.3", ' ', 8,
+                              true, false, &t, v));
+  EXPECT_EQ(t, 1305031102175304000);
+  EXPECT_EQ(v[1], 1.344379);
+  EXPECT_EQ(v[2], -0.627206);
+  EXPECT_EQ(v[3], 1e-3);
+  // 17 significant digits take the exact slow path and still round-trip.
+  ASSERT_TRUE(ParseNumberLine("1 0.12345678901234567 2 3 4 5 6 7", ' ', 8, true, false, &t, v));
+  EXPECT_EQ(v[1], 0.12345678901234567);
+  ASSERT_TRUE(ParseNumberLine("1403715524907143168, 0.5,1,2,3,4,5,6,7,8", ',', 8, false, true, &t,
+                              v, 8));
+  EXPECT_EQ(t, 1403715524907143168);
+  EXPECT_EQ(v[7], 6.0);
+}
+
+TEST(ParseNumberLine, RejectsIrregularLines) {
+  double v[8];
+  int64_t t = 0;
+  for (const char* bad : {"1 2 3 4 5 6 7", "1 2 3 4 5 6 7 8 9", "1 2 3 nan 5 6 7 8",
+                          "1 2 3 4x 5 6 7 8", ". 2 3 4 5 6 7 8", "1 2 3 inf 5 6 7 8"}) {
+    EXPECT_FALSE(ParseNumberLine(bad, ' ', 8, true, false, &t, v)) << bad;
+  }
+  EXPECT_FALSE(ParseNumberLine("1,2,3,4,5,6,7,8,", ',', 8, false, true, &t, v));
+  EXPECT_FALSE(ParseNumberLine("1.5,2,3,4,5,6,7,8", ',', 8, false, true, &t, v));
+}
+
+TEST(ParseNumberLine, MatchesFromCharsOnRandomDecimals) {
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(-1e4, 1e4);
+  double v[1];
+  int64_t t;
+  for (int i = 0; i < 20000; ++i) {
+    const std::string text = fmt::format("{:.{}f}", u(rng), static_cast<int>(rng() % 12));
+    ASSERT_TRUE(ParseNumberLine(text, ' ', 1, false, false, &t, v)) << text;
+    EXPECT_EQ(v[0], std::stod(text)) << text;
+  }
 }
 
 }  // namespace

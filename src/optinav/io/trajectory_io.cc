@@ -14,25 +14,34 @@ namespace {
 constexpr const char* kTumFields[] = {"t", "x", "y", "z", "qx", "qy", "qz", "qw"};
 constexpr const char* kEurocFields[] = {"timestamp", "px", "py", "pz", "qw", "qx", "qy", "qz"};
 
-Eigen::Quaterniond CheckedQuaternion(double w, double x, double y, double z,
-                                     const ErrorContext& ctx) {
-  const double norm = std::sqrt(w * w + x * x + y * y + z * z);
-  if (norm < 1e-6) throw Error("quaternion has (near) zero norm", ctx);
-  return Eigen::Quaterniond(w / norm, x / norm, y / norm, z / norm);
-}
-
-// Timestamps must not go backwards. Repeated stamps occur in real files (evo's own V102.txt
-// has four), so they are accepted and counted; association then takes the first of equals.
-void CheckNotBackwards(const Trajectory& traj, const ErrorContext& ctx, size_t* repeats) {
-  const size_t n = traj.t_ns.size();
-  if (n < 2) return;
-  if (traj.t_ns[n - 1] == traj.t_ns[n - 2]) ++*repeats;
-  if (traj.t_ns[n - 1] < traj.t_ns[n - 2]) {
-    throw Error(fmt::format("timestamp {} s goes backwards (previous {} s)",
-                            FormatNsAsSeconds(traj.t_ns[n - 1]),
-                            FormatNsAsSeconds(traj.t_ns[n - 2])),
-                ctx);
+// Appends a pose after checking its quaternion and timestamp. Timestamps must not go
+// backwards; repeated stamps occur in real files (evo's own V102.txt has four), so they are
+// accepted and counted, and association then takes the first of equals.
+template <typename ContextFn>
+void AddChecked(int64_t t, double w, double x, double y, double z, const Eigen::Vector3d& p,
+                const char* quaternion_field, const char* time_field, const ContextFn& context,
+                Trajectory* traj, size_t* repeats) {
+  const double norm2 = w * w + x * x + y * y + z * z;
+  if (!(norm2 > 1e-12)) {
+    ErrorContext ctx = context();
+    ctx.field = quaternion_field;
+    throw Error("quaternion has (near) zero norm", ctx);
   }
+  if (!traj->t_ns.empty() && t <= traj->t_ns.back()) {
+    if (t == traj->t_ns.back()) {
+      ++*repeats;
+    } else {
+      ErrorContext ctx = context();
+      ctx.field = time_field;
+      throw Error(fmt::format("timestamp {} s goes backwards (previous {} s)",
+                              FormatNsAsSeconds(t), FormatNsAsSeconds(traj->t_ns.back())),
+                  ctx);
+    }
+  }
+  const double inv = 1.0 / std::sqrt(norm2);
+  traj->t_ns.push_back(t);
+  traj->positions.push_back(p);
+  traj->rotations.push_back(Eigen::Quaterniond(w * inv, x * inv, y * inv, z * inv).toRotationMatrix());
 }
 
 void WarnRepeats(const std::string& path, size_t repeats) {
@@ -40,7 +49,8 @@ void WarnRepeats(const std::string& path, size_t repeats) {
 }
 
 Trajectory ReadTum(const std::string& path) {
-  const std::string text = ReadFileToString(path);
+  const MappedFile file(path);
+  const std::string_view text = file.view();
   Trajectory traj;
   traj.Reserve(text.size() / 64 + 1, true);
   LineCursor cursor(text);
@@ -50,30 +60,35 @@ Trajectory ReadTum(const std::string& path) {
   size_t repeats = 0;
   while (cursor.Next(&line)) {
     if (IsCommentOrBlank(line)) continue;
-    ErrorContext ctx{.file = path, .line = cursor.line_number()};
-    SplitFields(line, ' ', &f);
-    if (f.size() != 8) {
-      throw Error(fmt::format("expected 8 values 't x y z qx qy qz qw' (TUM), found {}", f.size()),
-                  ctx);
+    int64_t t = 0;
+    const bool fast = ParseNumberLine(line, ' ', 8, /*first_as_seconds=*/true, false, &t, v);
+    // The context (a string copy) is built only when needed: errors and the slow path.
+    auto context = [&] { return ErrorContext{.file = path, .line = cursor.line_number()}; };
+    if (!fast) {
+      ErrorContext ctx = context();
+      // Slow path: re-parse field by field to say exactly what is wrong.
+      SplitFields(line, ' ', &f);
+      if (f.size() != 8) {
+        throw Error(
+            fmt::format("expected 8 values 't x y z qx qy qz qw' (TUM), found {}", f.size()), ctx);
+      }
+      ctx.field = kTumFields[0];
+      t = ParseSecondsToNs(f[0], ctx);
+      for (int k = 1; k < 8; ++k) {
+        ctx.field = kTumFields[k];
+        v[k] = ParseFiniteDouble(f[k], ctx);
+      }
     }
-    ctx.field = kTumFields[0];
-    const int64_t t = ParseSecondsToNs(f[0], ctx);
-    for (int k = 1; k < 8; ++k) {
-      ctx.field = kTumFields[k];
-      v[k] = ParseFiniteDouble(f[k], ctx);
-    }
-    ctx.field = "qx qy qz qw";
-    traj.Add(t, Rigid3d(CheckedQuaternion(v[7], v[4], v[5], v[6], ctx),
-                        Eigen::Vector3d(v[1], v[2], v[3])));
-    ctx.field = "t";
-    CheckNotBackwards(traj, ctx, &repeats);
+    AddChecked(t, v[7], v[4], v[5], v[6], Eigen::Vector3d(v[1], v[2], v[3]), "qx qy qz qw", "t",
+               context, &traj, &repeats);
   }
   WarnRepeats(path, repeats);
   return traj;
 }
 
 Trajectory ReadEuroc(const std::string& path) {
-  const std::string text = ReadFileToString(path);
+  const MappedFile file(path);
+  const std::string_view text = file.view();
   Trajectory traj;
   traj.Reserve(text.size() / 100 + 1, true);
   LineCursor cursor(text);
@@ -83,32 +98,36 @@ Trajectory ReadEuroc(const std::string& path) {
   size_t repeats = 0;
   while (cursor.Next(&line)) {
     if (IsCommentOrBlank(line)) continue;
-    ErrorContext ctx{.file = path, .line = cursor.line_number()};
-    SplitFields(line, ',', &f);
-    if (f.size() < 8) {
-      throw Error(fmt::format("expected at least 8 comma-separated values "
-                              "'timestamp [ns], px, py, pz, qw, qx, qy, qz' (EuRoC), found {}",
-                              f.size()),
-                  ctx);
+    int64_t t = 0;
+    const bool fast =
+        ParseNumberLine(line, ',', 8, false, /*first_as_int_ns=*/true, &t, v, /*min_count=*/8);
+    auto context = [&] { return ErrorContext{.file = path, .line = cursor.line_number()}; };
+    if (!fast) {
+      ErrorContext ctx = context();
+      SplitFields(line, ',', &f);
+      if (f.size() < 8) {
+        throw Error(fmt::format("expected at least 8 comma-separated values "
+                                "'timestamp [ns], px, py, pz, qw, qx, qy, qz' (EuRoC), found {}",
+                                f.size()),
+                    ctx);
+      }
+      ctx.field = kEurocFields[0];
+      t = ParseInt64(f[0], ctx);
+      for (int k = 1; k < 8; ++k) {
+        ctx.field = kEurocFields[k];
+        v[k] = ParseFiniteDouble(f[k], ctx);
+      }
     }
-    ctx.field = kEurocFields[0];
-    const int64_t t = ParseInt64(f[0], ctx);
-    for (int k = 1; k < 8; ++k) {
-      ctx.field = kEurocFields[k];
-      v[k] = ParseFiniteDouble(f[k], ctx);
-    }
-    ctx.field = "qw qx qy qz";
-    traj.Add(t, Rigid3d(CheckedQuaternion(v[4], v[5], v[6], v[7], ctx),
-                        Eigen::Vector3d(v[1], v[2], v[3])));
-    ctx.field = "timestamp";
-    CheckNotBackwards(traj, ctx, &repeats);
+    AddChecked(t, v[4], v[5], v[6], v[7], Eigen::Vector3d(v[1], v[2], v[3]), "qw qx qy qz",
+               "timestamp", context, &traj, &repeats);
   }
   WarnRepeats(path, repeats);
   return traj;
 }
 
 Trajectory ReadKitti(const std::string& path, const std::string& times_path) {
-  const std::string text = ReadFileToString(path);
+  const MappedFile file(path);
+  const std::string_view text = file.view();
   Trajectory traj;
   LineCursor cursor(text);
   std::string_view line;
@@ -262,7 +281,8 @@ void WriteTrajectory(const std::string& path, const Trajectory& traj, Trajectory
       for (size_t i = 0; i < traj.size(); ++i) {
         const auto& p = traj.positions[i];
         const Eigen::Quaterniond q = traj.quaternion(i);
-        fmt::format_to(std::back_inserter(out), "{} {} {} {} {} {} {} {}\n",
+        fmt::format_to(std::back_inserter(out),
+                       "{} {:.9f} {:.9f} {:.9f} {:.9f} {:.9f} {:.9f} {:.9f}\n",
                        FormatNsAsSeconds(traj.t_ns[i]), p.x(), p.y(), p.z(), q.x(), q.y(), q.z(),
                        q.w());
       }
@@ -273,8 +293,8 @@ void WriteTrajectory(const std::string& path, const Trajectory& traj, Trajectory
       for (size_t i = 0; i < traj.size(); ++i) {
         const auto& p = traj.positions[i];
         const Eigen::Quaterniond q = traj.quaternion(i);
-        fmt::format_to(std::back_inserter(out), "{},{},{},{},{},{},{},{}\n", traj.t_ns[i], p.x(),
-                       p.y(), p.z(), q.w(), q.x(), q.y(), q.z());
+        fmt::format_to(std::back_inserter(out), "{},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f}\n",
+                       traj.t_ns[i], p.x(), p.y(), p.z(), q.w(), q.x(), q.y(), q.z());
       }
       break;
     case TrajectoryFormat::kKitti:

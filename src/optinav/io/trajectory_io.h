@@ -38,8 +38,9 @@ struct TrajectoryReadOptions {
 // Reads a trajectory; throws Error on any problem (file, line and field in the message).
 Trajectory ReadTrajectory(const std::string& path, const TrajectoryReadOptions& options = {});
 
-// Writes atomically (temporary file + rename). KITTI drops timestamps (write them with
-// WriteKittiTimes); TUM and EuRoC require them.
+// Writes atomically (temporary file + rename). TUM and EuRoC values get 9 decimals (nm, 1e-9
+// of a unit quaternion), timestamps are exact; KITTI matrices are written at full precision and
+// drop timestamps (write them with WriteKittiTimes); TUM and EuRoC require timestamps.
 void WriteTrajectory(const std::string& path, const Trajectory& trajectory,
                      TrajectoryFormat format);
 void WriteKittiTimes(const std::string& path, const Trajectory& trajectory);
