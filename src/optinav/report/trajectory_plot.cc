@@ -112,13 +112,15 @@ std::string RenderErrorPlotSvg(const ErrorPlotInput& in) {
   const double ly = map_box.y + map_box.h + 52;
   svg.Line(map_box.x, ly, map_box.x + 26, ly, "#555", 1.5, "stroke-dasharray=\"5,3\"");
   svg.Text(map_box.x + 32, ly + 4, "reference", 11);
-  svg.Text(map_box.x + 110, ly + 4, "estimate (colour = error)   o start", 11);
-  const double bx = map_box.x + 320, bw = 100;
+  svg.Text(map_box.x + 100, ly + 4, "estimate (colour = error)", 11);
+  svg.Circle(map_box.x + 255, ly, 4, "none", "#000");
+  svg.Text(map_box.x + 263, ly + 4, "start", 11);
+  const double bx = map_box.x + 310, bw = 110;
   for (int i = 0; i < 50; ++i) {
     svg.Rect(bx + i * bw / 50, ly - 6, bw / 50 + 0.3, 10, ColorMap(i / 49.0).Hex());
   }
-  svg.Text(bx - 4, ly + 4, fmt::format("{:.3g}", emin), 10, "end");
-  svg.Text(bx + bw + 4, ly + 4, fmt::format("{:.3g} {}", emax, in.unit), 10, "start");
+  svg.Text(bx, ly + 17, fmt::format("{:.3g}", emin), 10, "middle");
+  svg.Text(bx + bw, ly + 17, fmt::format("{:.3g} {}", emax, in.unit), 10, "middle");
 
   // --- Error over time (or pose index).
   const bool timed = est.has_timestamps();
