@@ -1,0 +1,218 @@
+#include "optinav/features/features.h"
+
+#include <cmath>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/features2d.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace optinav::features {
+namespace {
+
+class OrbExtractor : public FeatureExtractor {
+ public:
+  explicit OrbExtractor(const ExtractorOptions& o)
+      : orb_(cv::ORB::create(o.max_features, 1.2f, 8, 31, 0, 2, cv::ORB::HARRIS_SCORE, 31,
+                             o.orb_fast_threshold)) {}
+  Features Extract(const cv::Mat& gray, const cv::Mat& mask) const override {
+    Features f;
+    f.norm = cv::NORM_HAMMING;
+    orb_->detectAndCompute(gray, mask, f.keypoints, f.descriptors);
+    return f;
+  }
+  std::string name() const override { return "orb"; }
+  int norm() const override { return cv::NORM_HAMMING; }
+  int descriptor_type() const override { return CV_8U; }
+  int descriptor_size() const override { return 32; }
+
+ private:
+  cv::Ptr<cv::ORB> orb_;
+};
+
+class SiftExtractor : public FeatureExtractor {
+ public:
+  explicit SiftExtractor(const ExtractorOptions& o) : sift_(cv::SIFT::create(o.max_features)) {}
+  Features Extract(const cv::Mat& gray, const cv::Mat& mask) const override {
+    Features f;
+    f.norm = cv::NORM_L2;
+    sift_->detectAndCompute(gray, mask, f.keypoints, f.descriptors);
+    return f;
+  }
+  std::string name() const override { return "sift"; }
+  int norm() const override { return cv::NORM_L2; }
+  int descriptor_type() const override { return CV_32F; }
+  int descriptor_size() const override { return 128; }
+
+ private:
+  cv::Ptr<cv::SIFT> sift_;
+};
+
+}  // namespace
+
+std::optional<FeatureType> ParseFeatureType(const std::string& name) {
+  if (name == "orb") return FeatureType::kOrb;
+  if (name == "sift") return FeatureType::kSift;
+  return std::nullopt;
+}
+
+std::string FeatureTypeName(FeatureType type) { return type == FeatureType::kOrb ? "orb" : "sift"; }
+
+std::string ExtractorOptions::Check() const {
+  if (max_features < 4 || max_features > 100000) {
+    return "max_features must be in [4, 100000], got " + std::to_string(max_features);
+  }
+  if (orb_fast_threshold < 1 || orb_fast_threshold > 100) return "orb_fast_threshold must be in [1, 100]";
+  return "";
+}
+
+std::unique_ptr<FeatureExtractor> CreateFeatureExtractor(const ExtractorOptions& options) {
+  if (options.type == FeatureType::kSift) return std::make_unique<SiftExtractor>(options);
+  return std::make_unique<OrbExtractor>(options);
+}
+
+std::vector<cv::DMatch> MatchWithRatio(const cv::Mat& query, const cv::Mat& train, int norm,
+                                       float ratio) {
+  std::vector<cv::DMatch> out;
+  if (query.empty() || train.empty()) return out;
+  cv::BFMatcher matcher(norm, false);
+  std::vector<std::vector<cv::DMatch>> knn;
+  matcher.knnMatch(query, train, knn, 2);
+  for (const auto& m : knn) {
+    if (m.size() == 2 && m[0].distance < ratio * m[1].distance) {
+      out.push_back(m[0]);
+    } else if (m.size() == 1) {
+      out.push_back(m[0]);  // a single candidate cannot be ambiguous
+    }
+  }
+  std::sort(out.begin(), out.end(),
+            [](const cv::DMatch& a, const cv::DMatch& b) { return a.distance < b.distance; });
+  return out;
+}
+
+std::string HomographyOptions::Check() const {
+  if (!(reprojection_threshold_px > 0)) return "reprojection_threshold_px must be > 0";
+  if (min_inliers < 4) return "min_inliers must be >= 4";
+  if (!(min_scale > 0 && max_scale > min_scale)) return "need 0 < min_scale < max_scale";
+  if (!(max_anisotropy >= 1)) return "max_anisotropy must be >= 1";
+  return "";
+}
+
+cv::Matx22d HomographyJacobian(const cv::Matx33d& H, const cv::Point2d& p) {
+  const cv::Vec3d v = H * cv::Vec3d(p.x, p.y, 1.0);
+  const double w2 = v[2] * v[2];
+  return {(H(0, 0) * v[2] - H(2, 0) * v[0]) / w2, (H(0, 1) * v[2] - H(2, 1) * v[0]) / w2,
+          (H(1, 0) * v[2] - H(2, 0) * v[1]) / w2, (H(1, 1) * v[2] - H(2, 1) * v[1]) / w2};
+}
+
+cv::Point2d ApplyHomography(const cv::Matx33d& H, const cv::Point2d& p) {
+  const cv::Vec3d v = H * cv::Vec3d(p.x, p.y, 1.0);
+  return {v[0] / v[2], v[1] / v[2]};
+}
+
+HomographyResult EstimateHomography(const std::vector<cv::Point2f>& src,
+                                    const std::vector<cv::Point2f>& dst,
+                                    const HomographyOptions& o) {
+  HomographyResult r;
+  if (src.size() != dst.size()) {
+    r.reason = "source and destination point counts differ";
+    return r;
+  }
+  if (static_cast<int>(src.size()) < std::max(4, o.min_inliers)) {
+    r.reason = "too few matches (" + std::to_string(src.size()) + ", need " +
+               std::to_string(std::max(4, o.min_inliers)) + ")";
+    return r;
+  }
+  cv::Mat mask;
+  cv::Mat h = cv::findHomography(src, dst, cv::USAC_MAGSAC, o.reprojection_threshold_px, mask,
+                                 o.max_iterations, o.confidence);
+  if (h.empty()) {
+    r.reason = "no homography found by the robust estimator";
+    return r;
+  }
+  r.H = cv::Matx33d(h);
+  r.inlier_mask.assign(mask.begin<uint8_t>(), mask.end<uint8_t>());
+  // Refine on the inliers by least squares (Levenberg-Marquardt on the reprojection error),
+  // then take the inliers of the refined model.
+  {
+    std::vector<cv::Point2f> in_src, in_dst;
+    for (size_t i = 0; i < src.size(); ++i) {
+      if (r.inlier_mask[i]) {
+        in_src.push_back(src[i]);
+        in_dst.push_back(dst[i]);
+      }
+    }
+    if (in_src.size() >= 8) {
+      cv::Mat refined = cv::findHomography(in_src, in_dst, 0);
+      if (!refined.empty()) {
+        const cv::Matx33d hr(refined);
+        std::vector<uint8_t> m2(src.size(), 0);
+        const double t2 = o.reprojection_threshold_px * o.reprojection_threshold_px;
+        int count = 0;
+        for (size_t i = 0; i < src.size(); ++i) {
+          const cv::Point2d p = ApplyHomography(hr, src[i]);
+          const double dx = p.x - dst[i].x, dy = p.y - dst[i].y;
+          m2[i] = dx * dx + dy * dy <= t2;
+          count += m2[i];
+        }
+        if (count >= cv::countNonZero(mask)) {
+          r.H = hr;
+          r.inlier_mask = m2;
+          mask = cv::Mat(m2, true);
+        }
+      }
+    }
+  }
+  r.inliers = cv::countNonZero(mask);
+  r.inlier_ratio = static_cast<double>(r.inliers) / src.size();
+  if (r.inliers < o.min_inliers) {
+    r.reason = "too few inliers (" + std::to_string(r.inliers) + " < " +
+               std::to_string(o.min_inliers) + ")";
+    return r;
+  }
+  if (r.inlier_ratio < o.min_inlier_ratio) {
+    r.reason = "inlier ratio too low";
+    return r;
+  }
+  // Degeneracy checks on the local linear map (Jacobian) at the inliers' centroid and at the
+  // corners of their bounding box: no fold-over or mirror anywhere, plausible scale and shear
+  // at the centre, and bounded perspective (local scale varies by at most `max_anisotropy`).
+  cv::Point2d centre(0, 0);
+  cv::Point2d lo(1e300, 1e300), hi(-1e300, -1e300);
+  for (size_t i = 0; i < src.size(); ++i) {
+    if (!r.inlier_mask[i]) continue;
+    centre += cv::Point2d(src[i]);
+    lo = {std::min(lo.x, static_cast<double>(src[i].x)), std::min(lo.y, static_cast<double>(src[i].y))};
+    hi = {std::max(hi.x, static_cast<double>(src[i].x)), std::max(hi.y, static_cast<double>(src[i].y))};
+  }
+  centre *= 1.0 / r.inliers;
+  double centre_scale = 0;
+  for (const cv::Point2d& p : {centre, lo, hi, cv::Point2d(lo.x, hi.y), cv::Point2d(hi.x, lo.y)}) {
+    const cv::Matx22d j = HomographyJacobian(r.H, p);
+    const double det = j(0, 0) * j(1, 1) - j(0, 1) * j(1, 0);
+    if (!(det > 0)) {
+      r.reason = "degenerate homography (mirror or fold-over)";
+      return r;
+    }
+    if (p == centre) {
+      cv::Mat w;
+      cv::SVD::compute(cv::Mat(j), w, cv::SVD::NO_UV);
+      const double s1 = w.at<double>(0), s2 = w.at<double>(1);
+      if (s2 < o.min_scale || s1 > o.max_scale) {
+        r.reason = "implausible scale in homography";
+        return r;
+      }
+      if (s1 / s2 > o.max_anisotropy) {
+        r.reason = "implausible shear in homography";
+        return r;
+      }
+      centre_scale = std::sqrt(det);
+    } else if (std::sqrt(det) / centre_scale > o.max_anisotropy ||
+               centre_scale / std::sqrt(det) > o.max_anisotropy) {
+      r.reason = "implausible perspective in homography";
+      return r;
+    }
+  }
+  r.ok = true;
+  return r;
+}
+
+}  // namespace optinav::features

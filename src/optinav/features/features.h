@@ -1,0 +1,81 @@
+// Local features behind one interface, ratio-test matching, and robust homography estimation.
+// A learned detector/descriptor plugs in by implementing FeatureExtractor: matchers only see
+// descriptors and their norm (Hamming for binary, L2 for float).
+#pragma once
+
+#include <memory>
+#include <opencv2/core.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace optinav::features {
+
+enum class FeatureType { kOrb, kSift };
+std::optional<FeatureType> ParseFeatureType(const std::string& name);  // "orb" | "sift"
+std::string FeatureTypeName(FeatureType type);
+
+struct Features {
+  std::vector<cv::KeyPoint> keypoints;
+  cv::Mat descriptors;  // one row per keypoint: CV_8U (binary) or CV_32F
+  int norm = cv::NORM_HAMMING;
+  size_t size() const { return keypoints.size(); }
+};
+
+class FeatureExtractor {
+ public:
+  virtual ~FeatureExtractor() = default;
+  // `gray`: 8-bit single channel. `mask` (optional): non-zero where features may be detected.
+  virtual Features Extract(const cv::Mat& gray, const cv::Mat& mask = cv::Mat()) const = 0;
+  virtual std::string name() const = 0;
+  virtual int norm() const = 0;
+  virtual int descriptor_type() const = 0;  // CV_8U or CV_32F
+  virtual int descriptor_size() const = 0;  // columns per descriptor
+};
+
+struct ExtractorOptions {
+  FeatureType type = FeatureType::kOrb;
+  int max_features = 1024;  // strongest N kept
+  int orb_fast_threshold = 12;  // lower than OpenCV's 20: aerial imagery is low in contrast
+  std::string Check() const;    // "" when valid
+};
+
+std::unique_ptr<FeatureExtractor> CreateFeatureExtractor(const ExtractorOptions& options);
+
+// k = 2 nearest neighbours and Lowe's ratio test; returns query -> train matches sorted by
+// distance. Empty when either side is empty.
+std::vector<cv::DMatch> MatchWithRatio(const cv::Mat& query, const cv::Mat& train, int norm,
+                                       float ratio = 0.8f);
+
+struct HomographyOptions {
+  double reprojection_threshold_px = 4.0;
+  int min_inliers = 12;           // at least 4 by definition; higher rejects chance fits
+  double min_inlier_ratio = 0.0;  // inliers / matches
+  double min_scale = 0.2, max_scale = 5.0;  // singular values of the linear part
+  double max_anisotropy = 3.0;              // ratio of those singular values (shear, squash)
+  int max_iterations = 5000;
+  double confidence = 0.999;
+  std::string Check() const;
+};
+
+struct HomographyResult {
+  bool ok = false;
+  std::string reason;  // why not, when !ok
+  cv::Matx33d H;       // dst ~ H * src
+  int inliers = 0;
+  double inlier_ratio = 0;
+  std::vector<uint8_t> inlier_mask;
+};
+
+// Robust homography (OpenCV USAC MAGSAC++) with checks that reject degenerate results: mirror or
+// fold-over (non-positive local determinant), extreme scale, shear or perspective.
+HomographyResult EstimateHomography(const std::vector<cv::Point2f>& src,
+                                    const std::vector<cv::Point2f>& dst,
+                                    const HomographyOptions& options = {});
+
+// Applies a homography to a point.
+cv::Point2d ApplyHomography(const cv::Matx33d& H, const cv::Point2d& p);
+// The 2x2 Jacobian of the homography's point map at p.
+cv::Matx22d HomographyJacobian(const cv::Matx33d& H, const cv::Point2d& p);
+
+}  // namespace optinav::features

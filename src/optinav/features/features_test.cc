@@ -1,0 +1,98 @@
+#include "optinav/features/features.h"
+
+#include <gtest/gtest.h>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "optinav/util/testing.h"
+
+namespace optinav::features {
+namespace {
+
+cv::Mat Gray(const std::string& name) {
+  const cv::Mat img =
+      cv::imread((testing::SharedDataDir() / "images" / name).string(), cv::IMREAD_GRAYSCALE);
+  EXPECT_FALSE(img.empty()) << name;
+  return img;
+}
+
+HomographyResult MatchPair(const cv::Mat& a, const cv::Mat& b, FeatureType type, int n) {
+  const auto ex = CreateFeatureExtractor({.type = type, .max_features = n});
+  const Features fa = ex->Extract(a), fb = ex->Extract(b);
+  const auto matches = MatchWithRatio(fa.descriptors, fb.descriptors, ex->norm(), 0.8f);
+  std::vector<cv::Point2f> src, dst;
+  for (const auto& m : matches) {
+    src.push_back(fa.keypoints[m.queryIdx].pt);
+    dst.push_back(fb.keypoints[m.trainIdx].pt);
+  }
+  return EstimateHomography(src, dst, {.reprojection_threshold_px = 3.0, .max_anisotropy = 4.0});
+}
+
+// Worst corner distance between two homographies over an image.
+double CornerError(const cv::Matx33d& a, const cv::Matx33d& b, cv::Size size) {
+  double worst = 0;
+  for (const cv::Point2d c : {cv::Point2d(0, 0), cv::Point2d(size.width, 0),
+                              cv::Point2d(0, size.height), cv::Point2d(size.width, size.height)}) {
+    worst = std::max(worst, cv::norm(ApplyHomography(a, c) - ApplyHomography(b, c)));
+  }
+  return worst;
+}
+
+TEST(Homography, GraffitiPairMatchesGroundTruth) {
+  const cv::Mat g1 = Gray("graf1.png"), g3 = Gray("graf3.png");
+  cv::FileStorage fs((testing::SharedDataDir() / "images" / "H1to3p.xml").string(),
+                     cv::FileStorage::READ);
+  cv::Mat truth;
+  fs.getFirstTopLevelNode() >> truth;
+  ASSERT_EQ(truth.size(), cv::Size(3, 3));
+  for (FeatureType type : {FeatureType::kSift, FeatureType::kOrb}) {
+    const HomographyResult r = MatchPair(g1, g3, type, type == FeatureType::kOrb ? 5000 : 4000);
+    ASSERT_TRUE(r.ok) << FeatureTypeName(type) << ": " << r.reason;
+    const double err = CornerError(r.H, cv::Matx33d(truth), g1.size());
+    // The reference homography itself fits the matched points only to ~1-2 px (median), and
+    // the corners are extrapolated; ORB (the default) stays within 5 px, SIFT within 10.
+    const double threshold = type == FeatureType::kOrb ? 5.0 : 10.0;
+    std::printf("graf1->graf3 %s: %d inliers, worst corner error %.2f px (threshold %.0f)\n",
+                FeatureTypeName(type).c_str(), r.inliers, err, threshold);
+    EXPECT_LT(err, threshold) << FeatureTypeName(type);
+  }
+}
+
+TEST(Homography, RejectsMirrorsTooFewAndNoise) {
+  std::vector<cv::Point2f> src, mirrored;
+  cv::RNG rng(5);
+  for (int i = 0; i < 100; ++i) {
+    const cv::Point2f p(rng.uniform(0.f, 400.f), rng.uniform(0.f, 300.f));
+    src.push_back(p);
+    mirrored.emplace_back(400.f - p.x, p.y);
+  }
+  const HomographyResult m = EstimateHomography(src, mirrored);
+  EXPECT_FALSE(m.ok) << "a mirror image must not give a homography";
+  const HomographyResult few = EstimateHomography({src.begin(), src.begin() + 3},
+                                                  {src.begin(), src.begin() + 3});
+  EXPECT_FALSE(few.ok);
+  std::vector<cv::Point2f> noise;
+  for (int i = 0; i < 100; ++i) noise.emplace_back(rng.uniform(0.f, 400.f), rng.uniform(0.f, 300.f));
+  EXPECT_FALSE(EstimateHomography(src, noise).ok);
+  // A clean similarity is accepted with all inliers.
+  std::vector<cv::Point2f> sim;
+  for (const auto& p : src) sim.emplace_back(0.8f * p.x - 0.6f * p.y + 50, 0.6f * p.x + 0.8f * p.y + 20);
+  const HomographyResult ok = EstimateHomography(src, sim);
+  ASSERT_TRUE(ok.ok) << ok.reason;
+  EXPECT_EQ(ok.inliers, 100);
+}
+
+TEST(Features, BlackImageHasNoFeaturesAndMatchingEmptyIsEmpty) {
+  for (FeatureType type : {FeatureType::kOrb, FeatureType::kSift}) {
+    const auto ex = CreateFeatureExtractor({.type = type});
+    EXPECT_EQ(ex->Extract(cv::Mat::zeros(480, 640, CV_8UC1)).size(), 0u);
+  }
+  EXPECT_TRUE(MatchWithRatio(cv::Mat(), cv::Mat(), cv::NORM_HAMMING).empty());
+  EXPECT_FALSE(ExtractorOptions{.max_features = 1}.Check().empty());
+  EXPECT_EQ(ParseFeatureType("sift"), FeatureType::kSift);
+  EXPECT_FALSE(ParseFeatureType("superpoint").has_value());
+}
+
+}  // namespace
+}  // namespace optinav::features
