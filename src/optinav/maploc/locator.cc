@@ -1,0 +1,569 @@
+#include "optinav/maploc/locator.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <mutex>
+#include <Eigen/LU>
+#include <opencv2/flann.hpp>
+#include <opencv2/imgproc.hpp>
+#include <unordered_map>
+
+#include "optinav/geo/raster.h"
+#include "optinav/util/timer.h"
+
+namespace optinav::maploc {
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+cv::Mat ToGray(const cv::Mat& frame) {
+  if (frame.empty()) return {};
+  cv::Mat gray;
+  if (frame.channels() == 3) {
+    cv::cvtColor(frame, gray, cv::COLOR_BGR2GRAY);
+  } else if (frame.channels() == 4) {
+    cv::cvtColor(frame, gray, cv::COLOR_BGRA2GRAY);
+  } else {
+    gray = frame;
+  }
+  if (gray.depth() != CV_8U) gray.convertTo(gray, CV_8U);
+  return gray;
+}
+
+// Doubled-angle unit gradient field (complex, 2 channels), weighted down in flat areas; the
+// doubling makes it invariant to contrast inversion (water darker one year, brighter the next).
+cv::Mat OrientationField(const cv::Mat& gray, const cv::Mat& valid) {
+  cv::Mat f, gx, gy;
+  gray.convertTo(f, CV_32F);
+  cv::GaussianBlur(f, f, cv::Size(0, 0), 1.0);
+  cv::Sobel(f, gx, CV_32F, 1, 0, 3);
+  cv::Sobel(f, gy, CV_32F, 0, 1, 3);
+  cv::Mat mag2 = gx.mul(gx) + gy.mul(gy);
+  cv::Mat mag;
+  cv::sqrt(mag2, mag);
+  // Robust gradient scale: the median magnitude over valid pixels.
+  std::vector<float> m;
+  m.reserve(mag.total());
+  for (int y = 0; y < mag.rows; ++y) {
+    const float* row = mag.ptr<float>(y);
+    const uint8_t* v = valid.empty() ? nullptr : valid.ptr<uint8_t>(y);
+    for (int x = 0; x < mag.cols; ++x) {
+      if (!v || v[x]) m.push_back(row[x]);
+    }
+  }
+  float g0 = 1.0f;
+  if (!m.empty()) {
+    std::nth_element(m.begin(), m.begin() + m.size() / 2, m.end());
+    g0 = std::max(1.0f, m[m.size() / 2]);
+  }
+  cv::Mat out(gray.size(), CV_32FC2);
+  for (int y = 0; y < gray.rows; ++y) {
+    const float* px = gx.ptr<float>(y);
+    const float* py = gy.ptr<float>(y);
+    const float* pm2 = mag2.ptr<float>(y);
+    const float* pm = mag.ptr<float>(y);
+    const uint8_t* v = valid.empty() ? nullptr : valid.ptr<uint8_t>(y);
+    cv::Vec2f* o = out.ptr<cv::Vec2f>(y);
+    for (int x = 0; x < gray.cols; ++x) {
+      if ((v && !v[x]) || pm2[x] < 1e-6f) {
+        o[x] = {0, 0};
+        continue;
+      }
+      const float w = std::min(1.0f, pm[x] / g0) / pm2[x];
+      o[x] = {(px[x] * px[x] - py[x] * py[x]) * w, 2 * px[x] * py[x] * w};
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+std::string LocateOptions::Check() const {
+  if (!(ratio > 0 && ratio <= 1)) return "ratio must be in (0, 1]";
+  if (top_n_per_tile < 4) return "top_n_per_tile must be >= 4";
+  if (max_candidate_tiles < 1) return "max_candidate_tiles must be >= 1";
+  if (!(oc_heading_step_deg > 0.1)) return "oc_heading_step_deg must be > 0.1";
+  return homography.Check();
+}
+
+struct Locator::Impl {
+  const MapDatabase& db;
+  LocateOptions options;
+  geo::CrsTransform crs;
+  std::unique_ptr<features::FeatureExtractor> extractor;
+  // Global descriptor index (built on first use).
+  std::once_flag index_once;
+  std::unique_ptr<cv::flann::Index> index;
+  cv::Mat all_descriptors;
+  std::vector<int> descriptor_tile;
+  // Orthophoto for orientation correlation (opened on first use).
+  std::unique_ptr<geo::GeoRaster> ortho;
+  std::string ortho_error;
+  bool ortho_tried = false;
+
+  Impl(const MapDatabase& d, const LocateOptions& o)
+      : db(d),
+        options(o),
+        crs(d.crs_wkt),
+        extractor(features::CreateFeatureExtractor(
+            {.type = d.feature_type, .max_features = o.frame_features})) {}
+
+  double FrameGsd(const cv::Mat& gray, const Prior& prior) const {
+    const double alt = prior.altitude_m.value_or(db.options.altitude_m);
+    return 2.0 * alt * std::tan(db.options.hfov_deg * M_PI / 360.0) / gray.cols;
+  }
+
+  std::vector<Eigen::Vector2d> PriorCentresPx(const Prior& prior, const Locator& self) const {
+    std::vector<Eigen::Vector2d> centres;
+    if (prior.position) centres.push_back(self.LatLonToPixel(*prior.position));
+    for (const auto& c : prior.extra_centres) centres.push_back(self.LatLonToPixel(c));
+    return centres;
+  }
+
+  void BuildIndex() {
+    std::vector<cv::Mat> parts;
+    for (const MapTile& t : db.tiles) {
+      if (t.descriptors.empty()) continue;
+      parts.push_back(t.descriptors);
+      descriptor_tile.insert(descriptor_tile.end(), t.descriptors.rows, t.index);
+    }
+    if (parts.empty()) return;
+    cv::vconcat(parts, all_descriptors);
+    if (all_descriptors.type() == CV_8U) {
+      index = std::make_unique<cv::flann::Index>(all_descriptors, cv::flann::LshIndexParams(12, 20, 2),
+                                                 cvflann::FLANN_DIST_HAMMING);
+    } else {
+      index = std::make_unique<cv::flann::Index>(all_descriptors, cv::flann::KDTreeIndexParams(4));
+    }
+  }
+
+  const geo::GeoRaster* Ortho() {
+    if (!ortho_tried) {
+      ortho_tried = true;
+      const std::string path = options.ortho_path.empty() ? db.ortho_path : options.ortho_path;
+      try {
+        ortho = std::make_unique<geo::GeoRaster>(geo::GeoRaster::Open(path));
+      } catch (const Error& e) {
+        ortho_error = e.what();
+      }
+    }
+    return ortho.get();
+  }
+};
+
+Locator::Locator(const MapDatabase& db, const LocateOptions& options)
+    : impl_(std::make_unique<Impl>(db, options)) {
+  if (const std::string msg = options.Check(); !msg.empty()) throw Error(msg);
+}
+
+Locator::~Locator() = default;
+
+geo::LatLon Locator::PixelToLatLon(const Eigen::Vector2d& px) const {
+  return impl_->crs.ToLatLon(impl_->db.transform.PixelToCrs(px));
+}
+
+Eigen::Vector2d Locator::LatLonToPixel(const geo::LatLon& ll) const {
+  return impl_->db.transform.CrsToPixel(impl_->crs.FromLatLon(ll));
+}
+
+double Locator::PixelDirectionToHeading(const Eigen::Vector2d& d) const {
+  const auto& c = impl_->db.transform.c;
+  // Grid azimuth of the direction (meridian convergence is below 0.01 deg over a tile for
+  // the UTM-sized maps this is for; the geodesic answer would need two PROJ calls per frame).
+  const double east = c[1] * d.x() + c[2] * d.y();
+  const double north = c[4] * d.x() + c[5] * d.y();
+  double h = std::atan2(east, north) / kDeg;
+  if (h < 0) h += 360.0;
+  return h;
+}
+
+Eigen::Vector2d Locator::HeadingToPixelDirection(double heading_deg) const {
+  const auto& c = impl_->db.transform.c;
+  const Eigen::Vector2d en(std::sin(heading_deg * kDeg), std::cos(heading_deg * kDeg));
+  Eigen::Matrix2d a;
+  a << c[1], c[2], c[4], c[5];
+  return (a.inverse() * en).normalized();
+}
+
+LocateResult Locator::Locate(const cv::Mat& frame, const Prior& prior) {
+  Timer total;
+  const cv::Mat gray = ToGray(frame);
+  LocateResult feat = LocateByFeatures(gray, prior);
+  if (feat.localized || !impl_->options.allow_orientation_correlation || !prior.position ||
+      gray.empty()) {
+    feat.times.total_ms = total.ElapsedSeconds() * 1e3;
+    return feat;
+  }
+  LocateResult oc = LocateByOrientationCorrelation(gray, prior);
+  if (!oc.localized) {
+    oc.reason = "features: " + feat.reason + "; orientation correlation: " + oc.reason;
+  }
+  oc.times.extraction_ms += feat.times.extraction_ms;
+  oc.times.matching_ms += feat.times.matching_ms;
+  oc.times.estimation_ms += feat.times.estimation_ms;
+  oc.times.total_ms = total.ElapsedSeconds() * 1e3;
+  return oc;
+}
+
+LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior) {
+  Impl& im = *impl_;
+  const MapDatabase& db = im.db;
+  LocateResult r;
+  r.method = "features";
+  Timer total, stage;
+  const cv::Mat gray = ToGray(frame);
+  if (gray.empty()) {
+    r.reason = "empty frame";
+    return r;
+  }
+  // Bring the frame to the resolution the map's features were taken at.
+  const double frame_gsd = im.FrameGsd(gray, prior);
+  double to_feature = frame_gsd / db.feature_gsd_m;
+  cv::Mat work = gray;
+  if (prior.altitude_m && std::abs(to_feature - 1.0) > 0.15) {
+    cv::resize(gray, work, cv::Size(), to_feature, to_feature,
+               to_feature < 1 ? cv::INTER_AREA : cv::INTER_LINEAR);
+  } else {
+    to_feature = 1.0;
+  }
+  const features::Features ff = im.extractor->Extract(work);
+  r.times.extraction_ms = stage.ElapsedSeconds() * 1e3;
+  if (ff.size() < 8) {
+    r.reason = fmt::format("too few features in the frame ({}): textureless, dark or blurred",
+                           ff.size());
+    r.times.total_ms = total.ElapsedSeconds() * 1e3;
+    return r;
+  }
+  stage.Restart();
+
+  // Candidate tiles.
+  std::vector<int> candidates;
+  const auto centres = im.PriorCentresPx(prior, *this);
+  if (!centres.empty()) {
+    const double radius_px = prior.radius_m / db.map_gsd_m;
+    std::vector<std::pair<double, int>> by_distance;
+    for (const MapTile& t : db.tiles) {
+      double best = 1e300;
+      for (const auto& c : centres) {
+        // Distance from the centre to the tile rectangle.
+        const double dx = std::max({t.px.x - c.x(), 0.0, c.x() - (t.px.x + t.px.width)});
+        const double dy = std::max({t.px.y - c.y(), 0.0, c.y() - (t.px.y + t.px.height)});
+        const double centre_d = std::hypot(t.px.x + t.px.width / 2 - c.x(), t.px.y + t.px.height / 2 - c.y());
+        if (std::hypot(dx, dy) <= radius_px) best = std::min(best, centre_d);
+      }
+      if (best < 1e300) by_distance.emplace_back(best, t.index);
+    }
+    if (by_distance.empty()) {
+      r.reason = "the prior lies outside the map";
+      r.times.total_ms = total.ElapsedSeconds() * 1e3;
+      return r;
+    }
+    std::sort(by_distance.begin(), by_distance.end());
+    for (size_t i = 0; i < by_distance.size() &&
+                       static_cast<int>(i) < im.options.max_candidate_tiles;
+         ++i) {
+      candidates.push_back(by_distance[i].second);
+    }
+  } else {
+    // Global search: vote tiles through an approximate nearest-neighbour index of all map
+    // descriptors, then verify the best tiles and their neighbours geometrically.
+    std::call_once(im.index_once, [&] { im.BuildIndex(); });
+    if (!im.index) {
+      r.reason = "the map has no features";
+      return r;
+    }
+    cv::Mat idx, dist;
+    im.index->knnSearch(ff.descriptors, idx, dist, 2, cv::flann::SearchParams(32));
+    std::vector<double> votes(db.tiles.size(), 0.0);
+    for (int i = 0; i < idx.rows; ++i) {
+      const int a = idx.at<int>(i, 0), b = idx.at<int>(i, 1);
+      if (a < 0) continue;
+      const float da = dist.type() == CV_32F ? dist.at<float>(i, 0) : static_cast<float>(dist.at<int>(i, 0));
+      const float db2 = dist.type() == CV_32F ? dist.at<float>(i, 1) : static_cast<float>(dist.at<int>(i, 1));
+      if (b >= 0 && !(da < im.options.ratio * db2)) continue;
+      votes[im.descriptor_tile[a]] += 1.0;
+    }
+    std::vector<int> order(db.tiles.size());
+    for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
+    std::sort(order.begin(), order.end(), [&](int a, int b) { return votes[a] > votes[b]; });
+    std::vector<bool> taken(db.tiles.size(), false);
+    for (int k = 0; k < im.options.global_verify_tiles && k < static_cast<int>(order.size()); ++k) {
+      const MapTile& t = db.tiles[order[k]];
+      if (votes[t.index] <= 0) break;
+      for (int dr = -1; dr <= 1; ++dr) {
+        for (int dc = -1; dc <= 1; ++dc) {
+          const int rr = t.row + dr, cc = t.col + dc;
+          if (rr < 0 || cc < 0 || rr >= db.rows || cc >= db.cols) continue;
+          const int id = rr * db.cols + cc;
+          if (!taken[id]) {
+            taken[id] = true;
+            candidates.push_back(id);
+          }
+        }
+      }
+    }
+    if (candidates.empty()) {
+      r.reason = "no map tile shares features with the frame";
+      r.times.matching_ms = stage.ElapsedSeconds() * 1e3;
+      r.times.total_ms = total.ElapsedSeconds() * 1e3;
+      return r;
+    }
+  }
+  r.candidate_tiles = candidates;
+
+  // Match against every candidate, lift to map pixels, de-duplicate on a grid.
+  struct Corr {
+    cv::Point2f frame, map;
+    float distance;
+  };
+  std::unordered_map<int64_t, Corr> unique;
+  const double cell = im.options.dedupe_cell_px * db.feature_gsd_m / db.map_gsd_m;
+  for (int id : candidates) {
+    const MapTile& t = db.tiles[id];
+    if (t.descriptors.empty()) continue;
+    auto matches = features::MatchWithRatio(ff.descriptors, t.descriptors, ff.norm, im.options.ratio);
+    if (static_cast<int>(matches.size()) > im.options.top_n_per_tile) matches.resize(im.options.top_n_per_tile);
+    for (const auto& m : matches) {
+      const cv::Point2f mp = t.keypoints[m.trainIdx];
+      const int64_t key = (static_cast<int64_t>(m.queryIdx) << 40) ^
+                          (static_cast<int64_t>(std::floor(mp.x / cell)) << 20) ^
+                          static_cast<int64_t>(std::floor(mp.y / cell));
+      auto it = unique.find(key);
+      if (it == unique.end() || m.distance < it->second.distance) {
+        unique[key] = {ff.keypoints[m.queryIdx].pt, mp, m.distance};
+      }
+    }
+  }
+  std::vector<cv::Point2f> src, dst;
+  for (const auto& [k, c] : unique) {
+    src.push_back(c.frame * static_cast<float>(1.0 / to_feature));
+    dst.push_back(c.map);
+  }
+  r.times.matching_ms = stage.ElapsedSeconds() * 1e3;
+  stage.Restart();
+
+  features::HomographyOptions ho = im.options.homography;
+  ho.reprojection_threshold_px *= db.feature_gsd_m / db.map_gsd_m;  // threshold in map pixels
+  // Scale is map px per frame px: allow the plausible range around the expected one.
+  const double expected = frame_gsd / db.map_gsd_m;
+  ho.min_scale = expected / 3.0;
+  ho.max_scale = expected * 3.0;
+  const features::HomographyResult h = features::EstimateHomography(src, dst, ho);
+  r.times.estimation_ms = stage.ElapsedSeconds() * 1e3;
+  r.inliers = h.inliers;
+  r.inlier_ratio = h.inlier_ratio;
+  if (!h.ok) {
+    r.reason = h.reason;
+    r.times.total_ms = total.ElapsedSeconds() * 1e3;
+    return r;
+  }
+  const cv::Point2d c(gray.cols / 2.0, gray.rows / 2.0);
+  const cv::Point2d mc = features::ApplyHomography(h.H, c);
+  const cv::Point2d up = features::ApplyHomography(h.H, c + cv::Point2d(0, -gray.rows / 4.0));
+  r.map_px = {mc.x, mc.y};
+  if (mc.x < 0 || mc.y < 0 || mc.x > db.width || mc.y > db.height) {
+    r.reason = "the frame centre maps outside the map";
+    r.times.total_ms = total.ElapsedSeconds() * 1e3;
+    return r;
+  }
+  const cv::Matx22d j = features::HomographyJacobian(h.H, c);
+  r.scale = std::sqrt(std::abs(j(0, 0) * j(1, 1) - j(0, 1) * j(1, 0)));
+  r.altitude_m = r.scale * db.map_gsd_m * gray.cols / (2.0 * std::tan(db.options.hfov_deg * M_PI / 360.0));
+  r.heading_deg = PixelDirectionToHeading({up.x - mc.x, up.y - mc.y});
+  r.crs_xy = db.transform.PixelToCrs(r.map_px);
+  r.latlon = im.crs.ToLatLon(r.crs_xy);
+  r.localized = true;
+  r.reason = "ok";
+  // Confidence grows with inliers (saturating) and their share of the matches.
+  r.confidence = std::min(1.0, h.inliers / 60.0) * std::min(1.0, 0.5 + h.inlier_ratio);
+  r.times.total_ms = total.ElapsedSeconds() * 1e3;
+  return r;
+}
+
+LocateResult Locator::LocateByOrientationCorrelation(const cv::Mat& frame, const Prior& prior) {
+  Impl& im = *impl_;
+  const MapDatabase& db = im.db;
+  LocateResult r;
+  r.method = "orientation-correlation";
+  Timer total, stage;
+  const cv::Mat gray = ToGray(frame);
+  if (gray.empty()) {
+    r.reason = "empty frame";
+    return r;
+  }
+  if (!prior.position) {
+    r.reason = "orientation correlation needs a prior position";
+    return r;
+  }
+  const geo::GeoRaster* ortho = im.Ortho();
+  if (!ortho) {
+    r.reason = "orthophoto unavailable for orientation correlation: " + im.ortho_error;
+    return r;
+  }
+  // Working resolution: at least the map's and the frame's, and the frame at most ~192 px.
+  const double frame_gsd = im.FrameGsd(gray, prior);
+  const double frame_extent_m = std::max(gray.cols, gray.rows) * frame_gsd;
+  const double gsd = std::max({db.map_gsd_m, frame_gsd, frame_extent_m / 192.0});
+  const Eigen::Vector2d c_px = LatLonToPixel(*prior.position);
+  if (c_px.x() < -db.width * 0.1 || c_px.y() < -db.height * 0.1 || c_px.x() > db.width * 1.1 ||
+      c_px.y() > db.height * 1.1) {
+    r.reason = "the prior lies outside the map";
+    return r;
+  }
+  // The frame, north-up, fits in a P x P patch.
+  const double diag_m = std::hypot(gray.cols, gray.rows) * frame_gsd;
+  const int patch = static_cast<int>(std::ceil(diag_m / gsd)) | 1;
+  const double radius_w = prior.radius_m / gsd;  // search radius, working px
+  const int half = static_cast<int>(std::ceil(radius_w + patch / 2.0)) + 2;
+  const int win = 2 * half + 1;
+  const double to_map = gsd / db.map_gsd_m;  // map px per working px
+  cv::Mat valid_map;
+  const int wx = static_cast<int>(std::lround(c_px.x() - half * to_map));
+  const int wy = static_cast<int>(std::lround(c_px.y() - half * to_map));
+  const int wsize = static_cast<int>(std::lround(win * to_map));
+  cv::Mat map_img;
+  try {
+    map_img = ortho->ReadGray(wx, wy, wsize, wsize, win, win, &valid_map);
+  } catch (const Error& e) {
+    r.reason = e.what();
+    return r;
+  }
+  cv::erode(valid_map, valid_map, cv::Mat(), cv::Point(-1, -1), 2);
+  const cv::Mat map_field = OrientationField(map_img, valid_map);
+  const int n = cv::getOptimalDFTSize(win + patch);
+  cv::Mat map_padded = cv::Mat::zeros(n, n, CV_32FC2), map_spec;
+  map_field.copyTo(map_padded(cv::Rect(0, 0, win, win)));
+  cv::dft(map_padded, map_spec, cv::DFT_COMPLEX_OUTPUT);
+  r.times.extraction_ms = stage.ElapsedSeconds() * 1e3;
+  stage.Restart();
+
+  // Headings to try.
+  std::vector<double> headings;
+  if (prior.heading_deg) {
+    const double sigma = std::max(0.0, prior.heading_sigma_deg);
+    for (double d = -sigma; d <= sigma + 1e-9; d += im.options.oc_heading_step_deg) {
+      headings.push_back(*prior.heading_deg + d);
+    }
+  } else {
+    for (double h = 0; h < 360.0 - 1e-9; h += im.options.oc_heading_step_deg) headings.push_back(h);
+  }
+  // Frame pixels -> working px: offset_w = (frame_gsd / gsd) * R(h) * offset_frame, with R the
+  // rotation taking the frame's up to the heading direction in map pixels.
+  const Eigen::Vector2d north_px = HeadingToPixelDirection(0.0);
+  const double grid_rot = std::atan2(north_px.x(), -north_px.y());  // map north vs -y
+  const double s = frame_gsd / gsd;
+  const cv::Point2d fc(gray.cols / 2.0, gray.rows / 2.0);
+  cv::Mat ones(gray.size(), CV_8U, cv::Scalar(255));
+  struct Peak {
+    double score = -1e300, x = 0, y = 0, heading = 0, second = 0;
+  };
+  Peak best;
+  const double centre_w = half;  // prior centre in working px of the window
+  cv::Mat patch_field_padded(n, n, CV_32FC2), patch_spec, prod, corr;
+  std::vector<cv::Mat> planes;
+  for (double h : headings) {
+    const double a = h * kDeg + grid_rot;
+    const double ca = std::cos(a), sa = std::sin(a);
+    // patch (u, v) -> frame: inverse of  u = s R (f - fc) + patch/2.
+    cv::Matx23d to_frame(ca / s, sa / s, 0, -sa / s, ca / s, 0);
+    const double pc = patch / 2.0;
+    to_frame(0, 2) = fc.x - (to_frame(0, 0) * pc + to_frame(0, 1) * pc);
+    to_frame(1, 2) = fc.y - (to_frame(1, 0) * pc + to_frame(1, 1) * pc);
+    cv::Mat warped, valid;
+    cv::warpAffine(gray, warped, to_frame, cv::Size(patch, patch),
+                   cv::INTER_AREA | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT);
+    cv::warpAffine(ones, valid, to_frame, cv::Size(patch, patch),
+                   cv::INTER_NEAREST | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT);
+    cv::erode(valid, valid, cv::Mat(), cv::Point(-1, -1), 2);
+    const cv::Mat pf = OrientationField(warped, valid);
+    double weight = 0;
+    for (int y = 0; y < pf.rows; ++y) {
+      const cv::Vec2f* p = pf.ptr<cv::Vec2f>(y);
+      for (int x = 0; x < pf.cols; ++x) weight += std::hypot(p[x][0], p[x][1]);
+    }
+    if (weight < 1.0) continue;
+    patch_field_padded.setTo(0);
+    pf.copyTo(patch_field_padded(cv::Rect(0, 0, patch, patch)));
+    cv::dft(patch_field_padded, patch_spec, cv::DFT_COMPLEX_OUTPUT);
+    cv::mulSpectrums(map_spec, patch_spec, prod, 0, /*conjB=*/true);
+    cv::idft(prod, corr, cv::DFT_SCALE | cv::DFT_REAL_OUTPUT);
+    // corr(y, x): patch placed with its top-left at (x, y) in the window; the frame centre is
+    // then at (x + pc, y + pc). Search only where that centre is within the radius.
+    double best_here = -1e300, second_here = -1e300;
+    int bx = 0, by = 0;
+    const int lo = std::max(0, static_cast<int>(std::floor(centre_w - radius_w - pc)));
+    const int hi = std::min(win - 1, static_cast<int>(std::ceil(centre_w + radius_w - pc)));
+    for (int y = lo; y <= hi; ++y) {
+      const float* row = corr.ptr<float>(y);
+      for (int x = lo; x <= hi; ++x) {
+        const double dx = x + pc - centre_w, dy = y + pc - centre_w;
+        if (dx * dx + dy * dy > radius_w * radius_w) continue;
+        if (row[x] > best_here) {
+          best_here = row[x];
+          bx = x;
+          by = y;
+        }
+      }
+    }
+    // Second peak: best outside a neighbourhood of the first (distinctiveness).
+    const int excl = std::max(3, patch / 8);
+    for (int y = lo; y <= hi; ++y) {
+      const float* row = corr.ptr<float>(y);
+      for (int x = lo; x <= hi; ++x) {
+        if (std::abs(x - bx) <= excl && std::abs(y - by) <= excl) continue;
+        const double dx = x + pc - centre_w, dy = y + pc - centre_w;
+        if (dx * dx + dy * dy > radius_w * radius_w) continue;
+        second_here = std::max(second_here, static_cast<double>(row[x]));
+      }
+    }
+    const double score = best_here / weight;
+    if (score > best.score) {
+      // Sub-pixel peak by a parabola through the neighbours.
+      auto at = [&](int x, int y) {
+        x = std::clamp(x, 0, n - 1);
+        y = std::clamp(y, 0, n - 1);
+        return static_cast<double>(corr.at<float>(y, x));
+      };
+      const double c0 = at(bx, by);
+      const double dxn = at(bx - 1, by) - 2 * c0 + at(bx + 1, by);
+      const double dyn = at(bx, by - 1) - 2 * c0 + at(bx, by + 1);
+      const double ox = dxn < 0 ? 0.5 * (at(bx - 1, by) - at(bx + 1, by)) / dxn : 0.0;
+      const double oy = dyn < 0 ? 0.5 * (at(bx, by - 1) - at(bx, by + 1)) / dyn : 0.0;
+      best = {score, bx + std::clamp(ox, -0.5, 0.5), by + std::clamp(oy, -0.5, 0.5), h,
+              second_here / weight};
+    }
+  }
+  r.times.matching_ms = stage.ElapsedSeconds() * 1e3;
+  stage.Restart();
+  if (best.score <= 0) {
+    r.reason = "no gradient structure to correlate (textureless frame or map)";
+    r.times.total_ms = total.ElapsedSeconds() * 1e3;
+    return r;
+  }
+  const double peak_ratio = best.second > 0 ? best.score / best.second : 10.0;
+  r.inliers = 0;
+  r.confidence = std::clamp((peak_ratio - 1.0) / 1.0, 0.0, 1.0);
+  const double pc = patch / 2.0;
+  r.map_px = {wx + (best.x + pc) * to_map, wy + (best.y + pc) * to_map};
+  r.heading_deg = std::fmod(best.heading + 360.0, 360.0);
+  r.scale = frame_gsd / db.map_gsd_m;
+  r.altitude_m = prior.altitude_m.value_or(db.options.altitude_m);
+  r.times.estimation_ms = stage.ElapsedSeconds() * 1e3;
+  r.times.total_ms = total.ElapsedSeconds() * 1e3;
+  if (peak_ratio < im.options.oc_min_peak_ratio) {
+    r.reason = fmt::format("correlation peak not distinctive (ratio {:.2f} < {:.2f})", peak_ratio,
+                           im.options.oc_min_peak_ratio);
+    return r;
+  }
+  r.crs_xy = db.transform.PixelToCrs(r.map_px);
+  r.latlon = im.crs.ToLatLon(r.crs_xy);
+  r.localized = true;
+  r.reason = "ok";
+  return r;
+}
+
+}  // namespace optinav::maploc

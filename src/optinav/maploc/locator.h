@@ -1,0 +1,97 @@
+// Frame-to-map localization against a MapDatabase.
+//
+// Two methods, combined (the result says which one produced it and how confident it is):
+//  - features: ORB/SIFT matching (2-NN + Lowe ratio) against candidate tiles, matches lifted to
+//    map pixels and de-duplicated on a grid, robust homography (USAC MAGSAC++) with degeneracy
+//    checks; the frame centre goes through the homography to the map. Candidates come from the
+//    prior or, without one, from a global vote over an LSH index of all map descriptors.
+//  - orientation correlation (for appearance change, e.g. a map years older than the flight):
+//    dense correlation of doubled-angle gradient orientations between the frame, rotated over the
+//    heading uncertainty, and the map around the prior, by FFT. Needs a prior and reads the
+//    orthophoto itself (path stored in the database, or given).
+//
+// Headings are degrees clockwise from north of the frame's up direction (image -y).
+#pragma once
+
+#include <memory>
+#include <opencv2/core.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "optinav/maploc/map_db.h"
+
+namespace optinav::maploc {
+
+struct Prior {
+  std::optional<geo::LatLon> position;  // approximate position
+  double radius_m = 500.0;              // how far the truth may be from it
+  // The document's prediction: more centres (e.g. last fix moved along the bearing to the
+  // target and deviated bearings); candidates are tiles within radius_m of any centre.
+  std::vector<geo::LatLon> extra_centres;
+  std::optional<double> heading_deg;  // frame up direction, clockwise from north
+  double heading_sigma_deg = 10.0;    // half-width of the heading search
+  std::optional<double> altitude_m;   // approximate altitude above ground
+};
+
+struct LocateOptions {
+  float ratio = 0.8f;               // Lowe's ratio
+  int top_n_per_tile = 300;         // best matches kept per tile
+  int max_candidate_tiles = 25;     // nearest tiles to the prior that are matched
+  int global_verify_tiles = 4;      // best-voted tiles verified in a global search
+  double dedupe_cell_px = 2.0;      // grid cell (map pixels at feature resolution)
+  features::HomographyOptions homography{.reprojection_threshold_px = 4.0, .min_inliers = 15};
+  bool allow_orientation_correlation = true;
+  double oc_heading_step_deg = 2.0;  // heading step of the correlation search
+  double oc_min_peak_ratio = 1.15;   // best peak / best peak elsewhere
+  int frame_features = 2000;         // features taken from the frame
+  std::string ortho_path;            // overrides the database's orthophoto path (for OC)
+  std::string Check() const;
+};
+
+struct StageTimes {
+  double extraction_ms = 0, matching_ms = 0, estimation_ms = 0, total_ms = 0;
+};
+
+struct LocateResult {
+  bool localized = false;
+  std::string reason;  // why not (or "ok")
+  std::string method;  // "features" | "orientation-correlation" | ""
+  Eigen::Vector2d map_px = Eigen::Vector2d::Zero();   // frame centre in map pixels
+  Eigen::Vector2d crs_xy = Eigen::Vector2d::Zero();   // in the map CRS
+  geo::LatLon latlon;
+  double heading_deg = 0;  // frame up direction, clockwise from north
+  double scale = 0;        // map pixels per frame pixel at the centre
+  double altitude_m = 0;   // implied by the scale and the build's camera (0 if unknown)
+  int inliers = 0;
+  double inlier_ratio = 0;
+  double confidence = 0;  // [0, 1]
+  std::vector<int> candidate_tiles;
+  StageTimes times;
+};
+
+class Locator {
+ public:
+  // Keeps a reference to `db`, which must outlive the locator.
+  Locator(const MapDatabase& db, const LocateOptions& options = {});
+  ~Locator();
+  // `frame`: 8-bit grey or BGR. Never throws on bad frames: the result says why.
+  LocateResult Locate(const cv::Mat& frame, const Prior& prior = {});
+
+  // Individual methods (for tests and benchmarks).
+  LocateResult LocateByFeatures(const cv::Mat& gray, const Prior& prior);
+  LocateResult LocateByOrientationCorrelation(const cv::Mat& gray, const Prior& prior);
+
+  // Map pixel <-> lat/lon for callers.
+  geo::LatLon PixelToLatLon(const Eigen::Vector2d& px) const;
+  Eigen::Vector2d LatLonToPixel(const geo::LatLon& ll) const;
+  // Heading (deg from north) of a direction given in map pixels, and back.
+  double PixelDirectionToHeading(const Eigen::Vector2d& dir_px) const;
+  Eigen::Vector2d HeadingToPixelDirection(double heading_deg) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace optinav::maploc

@@ -1,0 +1,78 @@
+// The orthophoto feature database: a georeferenced orthophoto cut into overlapping square tiles,
+// each with its bounds (map pixels, CRS, latitude/longitude) and local features.
+//
+// Stored as one SQLite file (docs/MAPDB.md): a real embedded database gives atomic writes,
+// integrity checks, random access to tiles and a schema other tools can open. It is written to
+// MAP.db.tmp and renamed into place only when complete, so a failed build never leaves a file
+// that looks complete.
+#pragma once
+
+#include <array>
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "optinav/features/features.h"
+#include "optinav/geo/geo.h"
+
+namespace optinav::maploc {
+
+constexpr int kMapFormatVersion = 1;
+
+struct MapBuildOptions {
+  double altitude_m = 300.0;  // flight altitude above ground
+  double hfov_deg = 60.0;     // horizontal field of view of the camera
+  int frame_width = 640, frame_height = 480;  // camera frame size, pixels
+  // Tile side = scale_factor x the frame's ground footprint width (the document reduces tiles
+  // so that altitude, zoom and view changes still overlap one tile well).
+  double scale_factor = 1.0;
+  double overlap = 0.5;  // fraction of a tile shared with its neighbour, [0, 0.9]
+  features::FeatureType feature_type = features::FeatureType::kOrb;
+  int max_features = 1024;  // per tile
+  int threads = 2;          // 0: all hardware threads
+  std::string Check() const;  // "" when valid, else names the field and value
+};
+
+struct MapTile {
+  int index = 0, row = 0, col = 0;
+  cv::Rect2d px;                      // bounds in map pixels (may extend past the raster)
+  std::array<geo::LatLon, 4> corners;  // UL, UR, LR, LL
+  geo::LatLon centre;
+  Eigen::Vector2d centre_crs = Eigen::Vector2d::Zero();
+  bool padded = false;                 // extends past the raster (filled with no-data)
+  std::vector<cv::Point2f> keypoints;  // map pixels (full resolution)
+  std::vector<float> keypoint_size, keypoint_angle;
+  cv::Mat descriptors;
+};
+
+struct MapDatabase {
+  int format_version = kMapFormatVersion;
+  std::string ortho_path, crs_wkt, crs_name;
+  geo::GeoTransform transform;
+  int width = 0, height = 0;          // raster size, pixels
+  double map_gsd_m = 0;               // metres per map pixel
+  double feature_gsd_m = 0;           // metres per pixel of the images features were taken on
+  double tile_px = 0, step_px = 0;    // tile side and spacing, map pixels
+  int rows = 0, cols = 0;
+  MapBuildOptions options;
+  features::FeatureType feature_type = features::FeatureType::kOrb;
+  std::vector<MapTile> tiles;
+
+  size_t FeatureCount() const;
+  // Map pixel <-> CRS <-> lat/lon helpers.
+  Eigen::Vector2d PixelToCrs(const Eigen::Vector2d& px) const { return transform.PixelToCrs(px); }
+};
+
+// Builds the database from an orthophoto (parallel over tiles, progress bar on a terminal) and
+// writes it atomically to `out_path`. Throws Error on bad input (file, field) or I/O failure.
+MapDatabase BuildMapDatabase(const std::string& ortho_path, const MapBuildOptions& options,
+                             const std::string& out_path);
+
+// Loads a database; throws Error naming the file if it is not one, is incomplete, or has another
+// format version.
+MapDatabase LoadMapDatabase(const std::string& path);
+
+// The tile grid BuildMapDatabase would use (no features): for tests and `map info`.
+MapDatabase PlanMapDatabase(const std::string& ortho_path, const MapBuildOptions& options);
+
+}  // namespace optinav::maploc

@@ -1,0 +1,26 @@
+// Shared fixtures for maploc tests: real imagery wrapped into GeoTIFFs.
+#pragma once
+
+#include <opencv2/imgcodecs.hpp>
+#include <string>
+
+#include "optinav/geo/raster.h"
+#include "optinav/util/testing.h"
+
+namespace optinav::maploc::testmaps {
+
+// aero1.jpg (a real aerial photograph) as a GeoTIFF at 0.25 m/px in WGS 84 / UTM 33N.
+inline std::string Aero1GeoTiff(const std::filesystem::path& dir) {
+  const cv::Mat img = cv::imread((testing::SharedDataDir() / "images" / "aero1.jpg").string());
+  geo::GeoTransform gt;
+  gt.c = {500000.0, 0.25, 0.0, 5560000.0, 0.0, -0.25};
+  const std::string path = (dir / "aero1_utm33.tif").string();
+  geo::WriteGeoTiff(path, img, gt, "EPSG:32633");
+  return path;
+}
+
+inline std::string Naip(const std::string& year) {
+  return (testing::SharedDataDir() / "geo" / "naip" / ("naip_" + year + ".tif")).string();
+}
+
+}  // namespace optinav::maploc::testmaps
