@@ -11,7 +11,7 @@ namespace {
 class OrbExtractor : public FeatureExtractor {
  public:
   explicit OrbExtractor(const ExtractorOptions& o)
-      : orb_(cv::ORB::create(o.max_features, 1.2f, 8, 31, 0, 2, cv::ORB::HARRIS_SCORE, 31,
+      : orb_(cv::ORB::create(o.max_features, 1.2f, o.orb_levels, 31, 0, 2, cv::ORB::HARRIS_SCORE, 31,
                              o.orb_fast_threshold)) {}
   Features Extract(const cv::Mat& gray, const cv::Mat& mask) const override {
     Features f;
@@ -61,6 +61,7 @@ std::string ExtractorOptions::Check() const {
     return "max_features must be in [4, 100000], got " + std::to_string(max_features);
   }
   if (orb_fast_threshold < 1 || orb_fast_threshold > 100) return "orb_fast_threshold must be in [1, 100]";
+  if (orb_levels < 1 || orb_levels > 16) return "orb_levels must be in [1, 16]";
   return "";
 }
 
@@ -69,10 +70,57 @@ std::unique_ptr<FeatureExtractor> CreateFeatureExtractor(const ExtractorOptions&
   return std::make_unique<OrbExtractor>(options);
 }
 
+namespace {
+
+// Brute-force 2-NN for binary descriptors whose width is a multiple of 8 bytes: XOR + POPCNT on
+// 64-bit words (every x86-64 CPU since 2008 has POPCNT; the attribute enables it here only).
+__attribute__((target("popcnt"))) void Hamming2Nn(const cv::Mat& query, const cv::Mat& train,
+                                                  float ratio, std::vector<cv::DMatch>* out) {
+  const int words = query.cols / 8;
+  for (int q = 0; q < query.rows; ++q) {
+    const uint64_t* a = query.ptr<uint64_t>(q);
+    int best = INT32_MAX, second = INT32_MAX, best_idx = -1;
+    for (int t = 0; t < train.rows; ++t) {
+      const uint64_t* b = train.ptr<uint64_t>(t);
+      int d;
+      if (words == 4) {  // ORB: 256 bits
+        d = __builtin_popcountll(a[0] ^ b[0]) + __builtin_popcountll(a[1] ^ b[1]) +
+            __builtin_popcountll(a[2] ^ b[2]) + __builtin_popcountll(a[3] ^ b[3]);
+      } else {
+        d = 0;
+        for (int w = 0; w < words; ++w) d += __builtin_popcountll(a[w] ^ b[w]);
+      }
+      if (d < second) {
+        if (d < best) {
+          second = best;
+          best = d;
+          best_idx = t;
+        } else {
+          second = d;
+        }
+      }
+    }
+    if (best_idx < 0) continue;
+    if (train.rows == 1 || best < ratio * second) {
+      out->emplace_back(q, best_idx, static_cast<float>(best));
+    }
+  }
+}
+
+}  // namespace
+
 std::vector<cv::DMatch> MatchWithRatio(const cv::Mat& query, const cv::Mat& train, int norm,
                                        float ratio) {
   std::vector<cv::DMatch> out;
   if (query.empty() || train.empty()) return out;
+  if (norm == cv::NORM_HAMMING && query.type() == CV_8U && train.type() == CV_8U &&
+      query.cols == train.cols && query.cols % 8 == 0 && query.isContinuous() &&
+      train.isContinuous()) {
+    Hamming2Nn(query, train, ratio, &out);
+    std::sort(out.begin(), out.end(),
+              [](const cv::DMatch& a, const cv::DMatch& b) { return a.distance < b.distance; });
+    return out;
+  }
   cv::BFMatcher matcher(norm, false);
   std::vector<std::vector<cv::DMatch>> knn;
   matcher.knnMatch(query, train, knn, 2);

@@ -37,6 +37,7 @@ struct ExtractorOptions {
   FeatureType type = FeatureType::kOrb;
   int max_features = 1024;  // strongest N kept
   int orb_fast_threshold = 12;  // lower than OpenCV's 20: aerial imagery is low in contrast
+  int orb_levels = 8;           // pyramid levels (scale factor 1.2 each)
   std::string Check() const;    // "" when valid
 };
 

@@ -83,6 +83,27 @@ TEST(Homography, RejectsMirrorsTooFewAndNoise) {
   EXPECT_EQ(ok.inliers, 100);
 }
 
+TEST(Features, FastHammingMatcherAgreesWithOpenCv) {
+  cv::Mat q(300, 32, CV_8U), t(500, 32, CV_8U);
+  cv::randu(q, 0, 256);
+  cv::randu(t, 0, 256);
+  t.row(7).copyTo(q.row(3));  // an exact match
+  const auto fast = MatchWithRatio(q, t, cv::NORM_HAMMING, 0.8f);
+  // Reference: OpenCV's brute force (through a non-continuous view to bypass the fast path).
+  cv::Mat qq(300, 40, CV_8U), tt(500, 40, CV_8U);
+  q.copyTo(qq.colRange(0, 32));
+  t.copyTo(tt.colRange(0, 32));
+  const auto ref = MatchWithRatio(qq.colRange(0, 32), tt.colRange(0, 32), cv::NORM_HAMMING, 0.8f);
+  ASSERT_EQ(fast.size(), ref.size());
+  for (size_t i = 0; i < fast.size(); ++i) {
+    EXPECT_EQ(fast[i].distance, ref[i].distance);
+  }
+  ASSERT_FALSE(fast.empty());
+  EXPECT_EQ(fast[0].queryIdx, 3);
+  EXPECT_EQ(fast[0].trainIdx, 7);
+  EXPECT_EQ(fast[0].distance, 0.0f);
+}
+
 TEST(Features, BlackImageHasNoFeaturesAndMatchingEmptyIsEmpty) {
   for (FeatureType type : {FeatureType::kOrb, FeatureType::kSift}) {
     const auto ex = CreateFeatureExtractor({.type = type});

@@ -16,6 +16,7 @@
 #include "optinav/util/timer.h"
 
 namespace optinav::maploc {
+
 namespace {
 
 constexpr double kDeg = M_PI / 180.0;
@@ -82,6 +83,25 @@ cv::Mat OrientationField(const cv::Mat& gray, const cv::Mat& valid) {
 
 }  // namespace
 
+namespace {
+
+// One resolution level of the orthophoto for orientation correlation: the doubled-angle
+// gradient field of the whole map at `gsd` (computed once, then cropped per frame).
+struct OcLevel {
+  double gsd = 0;
+  cv::Mat field;  // CV_32FC2
+};
+
+struct OcPeak {
+  double score = -1e300, x = 0, y = 0, heading = 0, second = 0;
+};
+
+}  // namespace
+
+struct OcCache {
+  std::map<long, OcLevel> levels;
+};
+
 std::string LocateOptions::Check() const {
   if (!(ratio > 0 && ratio <= 1)) return "ratio must be in (0, 1]";
   if (top_n_per_tile < 4) return "top_n_per_tile must be >= 4";
@@ -100,17 +120,44 @@ struct Locator::Impl {
   std::unique_ptr<cv::flann::Index> index;
   cv::Mat all_descriptors;
   std::vector<int> descriptor_tile;
-  // Orthophoto for orientation correlation (opened on first use).
+  // Orthophoto and its orientation fields for orientation correlation (built on first use).
+  OcCache oc_cache;
   std::unique_ptr<geo::GeoRaster> ortho;
   std::string ortho_error;
   bool ortho_tried = false;
+
+  // Per tile, the features in its core: the cell of points nearer to this tile's centre than
+  // to any other (the whole map is covered once). Overlapping tiles detect the same map points
+  // again; matching cores only never sees a map point twice.
+  std::vector<cv::Mat> core_descriptors;
+  std::vector<std::vector<int>> core_index;  // into the tile's keypoints
 
   Impl(const MapDatabase& d, const LocateOptions& o)
       : db(d),
         options(o),
         crs(d.crs_wkt),
         extractor(features::CreateFeatureExtractor(
-            {.type = d.feature_type, .max_features = o.frame_features})) {}
+            {.type = d.feature_type, .max_features = o.frame_features,
+             .orb_levels = o.frame_orb_levels})) {
+    core_descriptors.resize(db.tiles.size());
+    core_index.resize(db.tiles.size());
+    for (const MapTile& t : db.tiles) {
+      const double cx = t.px.x + t.px.width / 2, cy = t.px.y + t.px.height / 2;
+      const double h = db.step_px / 2;
+      const double x0 = t.col == 0 ? -1e300 : cx - h, x1 = t.col == db.cols - 1 ? 1e300 : cx + h;
+      const double y0 = t.row == 0 ? -1e300 : cy - h, y1 = t.row == db.rows - 1 ? 1e300 : cy + h;
+      std::vector<int>& idx = core_index[t.index];
+      for (size_t i = 0; i < t.keypoints.size(); ++i) {
+        const auto& p = t.keypoints[i];
+        if (p.x >= x0 && p.x < x1 && p.y >= y0 && p.y < y1) idx.push_back(static_cast<int>(i));
+      }
+      cv::Mat& d = core_descriptors[t.index];
+      if (!idx.empty()) {
+        d.create(static_cast<int>(idx.size()), t.descriptors.cols, t.descriptors.type());
+        for (size_t k = 0; k < idx.size(); ++k) t.descriptors.row(idx[k]).copyTo(d.row(static_cast<int>(k)));
+      }
+    }
+  }
 
   double FrameGsd(const cv::Mat& gray, const Prior& prior) const {
     const double alt = prior.altitude_m.value_or(db.options.altitude_m);
@@ -315,33 +362,34 @@ LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior)
   }
   r.candidate_tiles = candidates;
 
-  // Match against every candidate, lift to map pixels, de-duplicate on a grid.
-  struct Corr {
-    cv::Point2f frame, map;
-    float distance;
-  };
-  std::unordered_map<int64_t, Corr> unique;
-  const double cell = im.options.dedupe_cell_px * db.feature_gsd_m / db.map_gsd_m;
+  // Match against the union of the candidates' core features (2-NN + ratio over the union),
+  // keep the best top_n_per_tile per tile, lift to map pixels, de-duplicate on a grid.
+  std::vector<cv::Mat> parts;
+  std::vector<std::pair<int, int>> owner;  // (tile, keypoint index) per union row
   for (int id : candidates) {
-    const MapTile& t = db.tiles[id];
-    if (t.descriptors.empty()) continue;
-    auto matches = features::MatchWithRatio(ff.descriptors, t.descriptors, ff.norm, im.options.ratio);
-    if (static_cast<int>(matches.size()) > im.options.top_n_per_tile) matches.resize(im.options.top_n_per_tile);
-    for (const auto& m : matches) {
-      const cv::Point2f mp = t.keypoints[m.trainIdx];
+    if (im.core_descriptors[id].empty()) continue;
+    parts.push_back(im.core_descriptors[id]);
+    for (int k : im.core_index[id]) owner.emplace_back(id, k);
+  }
+  std::vector<cv::Point2f> src, dst;
+  if (!parts.empty()) {
+    cv::Mat train;
+    cv::vconcat(parts, train);
+    const auto matches = features::MatchWithRatio(ff.descriptors, train, ff.norm, im.options.ratio);
+    std::unordered_map<int, int> per_tile;
+    std::unordered_map<int64_t, bool> seen;
+    const double cell = im.options.dedupe_cell_px * db.feature_gsd_m / db.map_gsd_m;
+    for (const auto& m : matches) {  // sorted by distance: best first
+      const auto [tile, k] = owner[m.trainIdx];
+      if (++per_tile[tile] > im.options.top_n_per_tile) continue;
+      const cv::Point2f mp = db.tiles[tile].keypoints[k];
       const int64_t key = (static_cast<int64_t>(m.queryIdx) << 40) ^
                           (static_cast<int64_t>(std::floor(mp.x / cell)) << 20) ^
                           static_cast<int64_t>(std::floor(mp.y / cell));
-      auto it = unique.find(key);
-      if (it == unique.end() || m.distance < it->second.distance) {
-        unique[key] = {ff.keypoints[m.queryIdx].pt, mp, m.distance};
-      }
+      if (!seen.emplace(key, true).second) continue;
+      src.push_back(ff.keypoints[m.queryIdx].pt * static_cast<float>(1.0 / to_feature));
+      dst.push_back(mp);
     }
-  }
-  std::vector<cv::Point2f> src, dst;
-  for (const auto& [k, c] : unique) {
-    src.push_back(c.frame * static_cast<float>(1.0 / to_feature));
-    dst.push_back(c.map);
   }
   r.times.matching_ms = stage.ElapsedSeconds() * 1e3;
   stage.Restart();
@@ -384,6 +432,7 @@ LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior)
   return r;
 }
 
+
 LocateResult Locator::LocateByOrientationCorrelation(const cv::Mat& frame, const Prior& prior) {
   Impl& im = *impl_;
   const MapDatabase& db = im.db;
@@ -404,155 +453,165 @@ LocateResult Locator::LocateByOrientationCorrelation(const cv::Mat& frame, const
     r.reason = "orthophoto unavailable for orientation correlation: " + im.ortho_error;
     return r;
   }
-  // Working resolution: at least the map's and the frame's, and the frame at most ~192 px.
-  const double frame_gsd = im.FrameGsd(gray, prior);
-  const double frame_extent_m = std::max(gray.cols, gray.rows) * frame_gsd;
-  const double gsd = std::max({db.map_gsd_m, frame_gsd, frame_extent_m / 192.0});
   const Eigen::Vector2d c_px = LatLonToPixel(*prior.position);
   if (c_px.x() < -db.width * 0.1 || c_px.y() < -db.height * 0.1 || c_px.x() > db.width * 1.1 ||
       c_px.y() > db.height * 1.1) {
     r.reason = "the prior lies outside the map";
     return r;
   }
-  // The frame, north-up, fits in a P x P patch.
+  const double frame_gsd = im.FrameGsd(gray, prior);
+  const double frame_extent_m = std::max(gray.cols, gray.rows) * frame_gsd;
   const double diag_m = std::hypot(gray.cols, gray.rows) * frame_gsd;
-  const int patch = static_cast<int>(std::ceil(diag_m / gsd)) | 1;
-  const double radius_w = prior.radius_m / gsd;  // search radius, working px
-  const int half = static_cast<int>(std::ceil(radius_w + patch / 2.0)) + 2;
-  const int win = 2 * half + 1;
-  const double to_map = gsd / db.map_gsd_m;  // map px per working px
-  cv::Mat valid_map;
-  const int wx = static_cast<int>(std::lround(c_px.x() - half * to_map));
-  const int wy = static_cast<int>(std::lround(c_px.y() - half * to_map));
-  const int wsize = static_cast<int>(std::lround(win * to_map));
-  cv::Mat map_img;
-  try {
-    map_img = ortho->ReadGray(wx, wy, wsize, wsize, win, win, &valid_map);
-  } catch (const Error& e) {
-    r.reason = e.what();
-    return r;
-  }
-  cv::erode(valid_map, valid_map, cv::Mat(), cv::Point(-1, -1), 2);
-  const cv::Mat map_field = OrientationField(map_img, valid_map);
-  const int n = cv::getOptimalDFTSize(win + patch);
-  cv::Mat map_padded = cv::Mat::zeros(n, n, CV_32FC2), map_spec;
-  map_field.copyTo(map_padded(cv::Rect(0, 0, win, win)));
-  cv::dft(map_padded, map_spec, cv::DFT_COMPLEX_OUTPUT);
-  r.times.extraction_ms = stage.ElapsedSeconds() * 1e3;
-  stage.Restart();
-
-  // Headings to try.
-  std::vector<double> headings;
-  if (prior.heading_deg) {
-    const double sigma = std::max(0.0, prior.heading_sigma_deg);
-    for (double d = -sigma; d <= sigma + 1e-9; d += im.options.oc_heading_step_deg) {
-      headings.push_back(*prior.heading_deg + d);
-    }
-  } else {
-    for (double h = 0; h < 360.0 - 1e-9; h += im.options.oc_heading_step_deg) headings.push_back(h);
-  }
-  // Frame pixels -> working px: offset_w = (frame_gsd / gsd) * R(h) * offset_frame, with R the
-  // rotation taking the frame's up to the heading direction in map pixels.
+  // Coarse level: the frame about `oc_coarse_px` across; fine level: twice that resolution
+  // (never finer than the map or the frame).
+  const double fine_gsd = std::max({db.map_gsd_m, frame_gsd, frame_extent_m / (2.0 * im.options.oc_coarse_px)});
+  const double coarse_gsd = 2.0 * fine_gsd;
+  auto level = [&](double gsd) -> const OcLevel& {
+    const long key = std::lround(gsd * 1000.0);
+    auto it = im.oc_cache.levels.find(key);
+    if (it != im.oc_cache.levels.end()) return it->second;
+    OcLevel l;
+    l.gsd = gsd;
+    const double k = db.map_gsd_m / gsd;
+    const int w = std::max(8, static_cast<int>(std::lround(db.width * k)));
+    const int h = std::max(8, static_cast<int>(std::lround(db.height * k)));
+    cv::Mat valid;
+    const cv::Mat img = ortho->ReadGray(0, 0, db.width, db.height, w, h, &valid);
+    cv::erode(valid, valid, cv::Mat(), cv::Point(-1, -1), 2);
+    l.field = OrientationField(img, valid);
+    return im.oc_cache.levels.emplace(key, std::move(l)).first->second;
+  };
   const Eigen::Vector2d north_px = HeadingToPixelDirection(0.0);
   const double grid_rot = std::atan2(north_px.x(), -north_px.y());  // map north vs -y
-  const double s = frame_gsd / gsd;
-  const cv::Point2d fc(gray.cols / 2.0, gray.rows / 2.0);
-  cv::Mat ones(gray.size(), CV_8U, cv::Scalar(255));
-  struct Peak {
-    double score = -1e300, x = 0, y = 0, heading = 0, second = 0;
-  };
-  Peak best;
-  const double centre_w = half;  // prior centre in working px of the window
-  cv::Mat patch_field_padded(n, n, CV_32FC2), patch_spec, prod, corr;
-  std::vector<cv::Mat> planes;
-  for (double h : headings) {
-    const double a = h * kDeg + grid_rot;
-    const double ca = std::cos(a), sa = std::sin(a);
-    // patch (u, v) -> frame: inverse of  u = s R (f - fc) + patch/2.
-    cv::Matx23d to_frame(ca / s, sa / s, 0, -sa / s, ca / s, 0);
+  const cv::Mat ones(gray.size(), CV_8U, cv::Scalar(255));
+
+  // Correlates the frame, rotated to each heading, with the map around `centre` (map px)
+  // within `radius_px` (map px). Returns the best peak in map pixels.
+  auto correlate = [&](const OcLevel& lv, const std::vector<double>& headings,
+                       const Eigen::Vector2d& centre, double radius_px) {
+    OcPeak best;
+    const double to_map = lv.gsd / db.map_gsd_m;
+    const double s = frame_gsd / lv.gsd;
+    const int patch = static_cast<int>(std::ceil(diag_m / lv.gsd)) | 1;
     const double pc = patch / 2.0;
-    to_frame(0, 2) = fc.x - (to_frame(0, 0) * pc + to_frame(0, 1) * pc);
-    to_frame(1, 2) = fc.y - (to_frame(1, 0) * pc + to_frame(1, 1) * pc);
-    cv::Mat warped, valid;
-    cv::warpAffine(gray, warped, to_frame, cv::Size(patch, patch),
-                   cv::INTER_AREA | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT);
-    cv::warpAffine(ones, valid, to_frame, cv::Size(patch, patch),
-                   cv::INTER_NEAREST | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT);
-    cv::erode(valid, valid, cv::Mat(), cv::Point(-1, -1), 2);
-    const cv::Mat pf = OrientationField(warped, valid);
-    double weight = 0;
-    for (int y = 0; y < pf.rows; ++y) {
-      const cv::Vec2f* p = pf.ptr<cv::Vec2f>(y);
-      for (int x = 0; x < pf.cols; ++x) weight += std::hypot(p[x][0], p[x][1]);
-    }
-    if (weight < 1.0) continue;
-    patch_field_padded.setTo(0);
-    pf.copyTo(patch_field_padded(cv::Rect(0, 0, patch, patch)));
-    cv::dft(patch_field_padded, patch_spec, cv::DFT_COMPLEX_OUTPUT);
-    cv::mulSpectrums(map_spec, patch_spec, prod, 0, /*conjB=*/true);
-    cv::idft(prod, corr, cv::DFT_SCALE | cv::DFT_REAL_OUTPUT);
-    // corr(y, x): patch placed with its top-left at (x, y) in the window; the frame centre is
-    // then at (x + pc, y + pc). Search only where that centre is within the radius.
-    double best_here = -1e300, second_here = -1e300;
-    int bx = 0, by = 0;
-    const int lo = std::max(0, static_cast<int>(std::floor(centre_w - radius_w - pc)));
-    const int hi = std::min(win - 1, static_cast<int>(std::ceil(centre_w + radius_w - pc)));
-    for (int y = lo; y <= hi; ++y) {
-      const float* row = corr.ptr<float>(y);
-      for (int x = lo; x <= hi; ++x) {
-        const double dx = x + pc - centre_w, dy = y + pc - centre_w;
-        if (dx * dx + dy * dy > radius_w * radius_w) continue;
-        if (row[x] > best_here) {
+    const double radius_w = radius_px / to_map;
+    const int half = static_cast<int>(std::ceil(radius_w + pc)) + 2;
+    const int win = 2 * half + 1;
+    const Eigen::Vector2d cw = centre / to_map;  // centre in level px
+    const int wx = static_cast<int>(std::lround(cw.x())) - half;
+    const int wy = static_cast<int>(std::lround(cw.y())) - half;
+    const double centre_w_x = cw.x() - wx, centre_w_y = cw.y() - wy;
+    const int n = cv::getOptimalDFTSize(win);
+    cv::Mat padded = cv::Mat::zeros(n, n, CV_32FC2), map_spec;
+    const cv::Rect src = cv::Rect(wx, wy, win, win) & cv::Rect(0, 0, lv.field.cols, lv.field.rows);
+    if (src.area() > 0) lv.field(src).copyTo(padded(cv::Rect(src.x - wx, src.y - wy, src.width, src.height)));
+    cv::dft(padded, map_spec, cv::DFT_COMPLEX_OUTPUT);
+    cv::Mat patch_padded(n, n, CV_32FC2), patch_spec, prod, corr;
+    const cv::Point2d fc(gray.cols / 2.0, gray.rows / 2.0);
+    for (double h : headings) {
+      const double a = h * kDeg + grid_rot;
+      const double ca = std::cos(a), sa = std::sin(a);
+      // patch (u, v) -> frame: the inverse of u = s R(a) (f - fc) + pc.
+      cv::Matx23d to_frame(ca / s, sa / s, 0, -sa / s, ca / s, 0);
+      to_frame(0, 2) = fc.x - (to_frame(0, 0) * pc + to_frame(0, 1) * pc);
+      to_frame(1, 2) = fc.y - (to_frame(1, 0) * pc + to_frame(1, 1) * pc);
+      cv::Mat warped, valid;
+      cv::warpAffine(gray, warped, to_frame, cv::Size(patch, patch),
+                     (s < 1 ? cv::INTER_AREA : cv::INTER_LINEAR) | cv::WARP_INVERSE_MAP,
+                     cv::BORDER_CONSTANT);
+      cv::warpAffine(ones, valid, to_frame, cv::Size(patch, patch),
+                     cv::INTER_NEAREST | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT);
+      cv::erode(valid, valid, cv::Mat(), cv::Point(-1, -1), 2);
+      const cv::Mat pf = OrientationField(warped, valid);
+      double weight = 0;
+      for (int y = 0; y < pf.rows; ++y) {
+        const cv::Vec2f* p = pf.ptr<cv::Vec2f>(y);
+        for (int x = 0; x < pf.cols; ++x) weight += std::hypot(p[x][0], p[x][1]);
+      }
+      if (weight < 1.0 || patch > n) continue;
+      patch_padded.setTo(0);
+      pf.copyTo(patch_padded(cv::Rect(0, 0, patch, patch)));
+      cv::dft(patch_padded, patch_spec, cv::DFT_COMPLEX_OUTPUT);
+      cv::mulSpectrums(map_spec, patch_spec, prod, 0, /*conjB=*/true);
+      cv::idft(prod, corr, cv::DFT_SCALE | cv::DFT_REAL_OUTPUT);
+      // corr(y, x): patch top-left at (x, y), frame centre at (x + pc, y + pc).
+      double best_here = -1e300, second_here = -1e300;
+      int bx = 0, by = 0;
+      const int x_lo = std::max(0, static_cast<int>(std::floor(centre_w_x - radius_w - pc)));
+      const int x_hi = std::min(n - patch, static_cast<int>(std::ceil(centre_w_x + radius_w - pc)));
+      const int y_lo = std::max(0, static_cast<int>(std::floor(centre_w_y - radius_w - pc)));
+      const int y_hi = std::min(n - patch, static_cast<int>(std::ceil(centre_w_y + radius_w - pc)));
+      const double r2 = radius_w * radius_w;
+      for (int y = y_lo; y <= y_hi; ++y) {
+        const float* row = corr.ptr<float>(y);
+        for (int x = x_lo; x <= x_hi; ++x) {
+          const double dx = x + pc - centre_w_x, dy = y + pc - centre_w_y;
+          if (dx * dx + dy * dy > r2 || row[x] <= best_here) continue;
           best_here = row[x];
           bx = x;
           by = y;
         }
       }
-    }
-    // Second peak: best outside a neighbourhood of the first (distinctiveness).
-    const int excl = std::max(3, patch / 8);
-    for (int y = lo; y <= hi; ++y) {
-      const float* row = corr.ptr<float>(y);
-      for (int x = lo; x <= hi; ++x) {
-        if (std::abs(x - bx) <= excl && std::abs(y - by) <= excl) continue;
-        const double dx = x + pc - centre_w, dy = y + pc - centre_w;
-        if (dx * dx + dy * dy > radius_w * radius_w) continue;
-        second_here = std::max(second_here, static_cast<double>(row[x]));
+      if (best_here == -1e300) continue;
+      const int excl = std::max(3, patch / 8);
+      for (int y = y_lo; y <= y_hi; ++y) {
+        const float* row = corr.ptr<float>(y);
+        for (int x = x_lo; x <= x_hi; ++x) {
+          if (std::abs(x - bx) <= excl && std::abs(y - by) <= excl) continue;
+          const double dx = x + pc - centre_w_x, dy = y + pc - centre_w_y;
+          if (dx * dx + dy * dy > r2) continue;
+          second_here = std::max(second_here, static_cast<double>(row[x]));
+        }
+      }
+      const double score = best_here / weight;
+      if (score > best.score) {
+        auto at = [&](int x, int y) {
+          return static_cast<double>(corr.at<float>(std::clamp(y, 0, n - 1), std::clamp(x, 0, n - 1)));
+        };
+        const double c0 = at(bx, by);
+        const double dxx = at(bx - 1, by) - 2 * c0 + at(bx + 1, by);
+        const double dyy = at(bx, by - 1) - 2 * c0 + at(bx, by + 1);
+        const double ox = dxx < 0 ? 0.5 * (at(bx - 1, by) - at(bx + 1, by)) / dxx : 0.0;
+        const double oy = dyy < 0 ? 0.5 * (at(bx, by - 1) - at(bx, by + 1)) / dyy : 0.0;
+        const double px = wx + bx + std::clamp(ox, -0.5, 0.5) + pc;
+        const double py = wy + by + std::clamp(oy, -0.5, 0.5) + pc;
+        best = {score, px * to_map, py * to_map, h, second_here > -1e300 ? second_here / weight : 0};
       }
     }
-    const double score = best_here / weight;
-    if (score > best.score) {
-      // Sub-pixel peak by a parabola through the neighbours.
-      auto at = [&](int x, int y) {
-        x = std::clamp(x, 0, n - 1);
-        y = std::clamp(y, 0, n - 1);
-        return static_cast<double>(corr.at<float>(y, x));
-      };
-      const double c0 = at(bx, by);
-      const double dxn = at(bx - 1, by) - 2 * c0 + at(bx + 1, by);
-      const double dyn = at(bx, by - 1) - 2 * c0 + at(bx, by + 1);
-      const double ox = dxn < 0 ? 0.5 * (at(bx - 1, by) - at(bx + 1, by)) / dxn : 0.0;
-      const double oy = dyn < 0 ? 0.5 * (at(bx, by - 1) - at(bx, by + 1)) / dyn : 0.0;
-      best = {score, bx + std::clamp(ox, -0.5, 0.5), by + std::clamp(oy, -0.5, 0.5), h,
-              second_here / weight};
-    }
-  }
-  r.times.matching_ms = stage.ElapsedSeconds() * 1e3;
+    return best;
+  };
+
+  const OcLevel& coarse = level(coarse_gsd);
+  const OcLevel& fine = level(fine_gsd);
+  r.times.extraction_ms = stage.ElapsedSeconds() * 1e3;
   stage.Restart();
-  if (best.score <= 0) {
+  std::vector<double> headings;
+  const double step = im.options.oc_heading_step_deg;
+  if (prior.heading_deg) {
+    const double sigma = std::max(0.0, prior.heading_sigma_deg);
+    const int k = static_cast<int>(std::ceil(sigma / step));
+    for (int i = -k; i <= k; ++i) headings.push_back(*prior.heading_deg + i * sigma / std::max(k, 1));
+  } else {
+    for (double h = 0; h < 360.0 - 1e-9; h += step) headings.push_back(h);
+  }
+  const OcPeak c = correlate(coarse, headings, c_px, prior.radius_m / db.map_gsd_m);
+  if (c.score <= 0) {
     r.reason = "no gradient structure to correlate (textureless frame or map)";
     r.times.total_ms = total.ElapsedSeconds() * 1e3;
     return r;
   }
-  const double peak_ratio = best.second > 0 ? best.score / best.second : 10.0;
-  r.inliers = 0;
-  r.confidence = std::clamp((peak_ratio - 1.0) / 1.0, 0.0, 1.0);
-  const double pc = patch / 2.0;
-  r.map_px = {wx + (best.x + pc) * to_map, wy + (best.y + pc) * to_map};
-  r.heading_deg = std::fmod(best.heading + 360.0, 360.0);
+  // Refine at twice the resolution around the coarse peak and heading.
+  const OcPeak f = correlate(fine, {c.heading},
+                             {c.x, c.y}, 2.5 * coarse_gsd / db.map_gsd_m);
+  const OcPeak& best = f.score > 0 ? f : c;
+  r.times.matching_ms = stage.ElapsedSeconds() * 1e3;
+  // Distinctiveness from the coarse search, which saw the whole prior area.
+  const double peak_ratio = c.second > 0 ? c.score / c.second : 10.0;
+  r.confidence = std::clamp(peak_ratio - 1.0, 0.0, 1.0);
+  r.map_px = {best.x, best.y};
+  r.heading_deg = std::fmod(best.heading + 720.0, 360.0);
   r.scale = frame_gsd / db.map_gsd_m;
   r.altitude_m = prior.altitude_m.value_or(db.options.altitude_m);
-  r.times.estimation_ms = stage.ElapsedSeconds() * 1e3;
   r.times.total_ms = total.ElapsedSeconds() * 1e3;
   if (peak_ratio < im.options.oc_min_peak_ratio) {
     r.reason = fmt::format("correlation peak not distinctive (ratio {:.2f} < {:.2f})", peak_ratio,

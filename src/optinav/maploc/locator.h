@@ -1,8 +1,9 @@
 // Frame-to-map localization against a MapDatabase.
 //
 // Two methods, combined (the result says which one produced it and how confident it is):
-//  - features: ORB/SIFT matching (2-NN + Lowe ratio) against candidate tiles, matches lifted to
-//    map pixels and de-duplicated on a grid, robust homography (USAC MAGSAC++) with degeneracy
+//  - features: ORB/SIFT matching (2-NN + Lowe ratio) against the candidate tiles (each tile's
+//    core cell, so overlapping tiles never offer a map point twice), best N per tile, matches in
+//    map pixels de-duplicated on a grid, robust homography (USAC MAGSAC++) with degeneracy
 //    checks; the frame centre goes through the homography to the map. Candidates come from the
 //    prior or, without one, from a global vote over an LSH index of all map descriptors.
 //  - orientation correlation (for appearance change, e.g. a map years older than the flight):
@@ -37,14 +38,18 @@ struct Prior {
 struct LocateOptions {
   float ratio = 0.8f;               // Lowe's ratio
   int top_n_per_tile = 300;         // best matches kept per tile
-  int max_candidate_tiles = 25;     // nearest tiles to the prior that are matched
+  int max_candidate_tiles = 9;      // nearest tiles to the prior that are matched
   int global_verify_tiles = 4;      // best-voted tiles verified in a global search
   double dedupe_cell_px = 2.0;      // grid cell (map pixels at feature resolution)
   features::HomographyOptions homography{.reprojection_threshold_px = 4.0, .min_inliers = 15};
   bool allow_orientation_correlation = true;
-  double oc_heading_step_deg = 2.0;  // heading step of the correlation search
+  double oc_heading_step_deg = 3.0;  // heading step of the coarse correlation search
+  int oc_coarse_px = 96;             // frame size across at the coarse correlation level
   double oc_min_peak_ratio = 1.15;   // best peak / best peak elsewhere
-  int frame_features = 2000;         // features taken from the frame
+  int frame_features = 1024;         // features taken from the frame
+  // ORB pyramid levels for the frame (x1.2 each): the map tiles carry 8 levels already, so 5
+  // on the frame still spans scale changes of 4x between them, at 25 % less extraction time.
+  int frame_orb_levels = 5;
   std::string ortho_path;            // overrides the database's orthophoto path (for OC)
   std::string Check() const;
 };

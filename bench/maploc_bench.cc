@@ -1,0 +1,176 @@
+// Map localization speed (issue: map-based localization), one core:
+//  - BM_LocateWithPrior: 640x480 frame, prior -> 9 candidate tiles of up to 1024 ORB features,
+//    frames cut from the map's own image (the document's setting); target median < 10 ms.
+//  - BM_OrientationCorrelation: NAIP 2009 map, 256x256 frames from 2017 (appearance change),
+//    prior within 250 m, heading known within +-10 deg; target median < 20 ms.
+// Each benchmark iteration localizes a fixed, seeded set of frames and reports the median and
+// per-stage medians as counters (ms). Data: ../shared/data (or $OPTINAV_SHARED_DATA).
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <filesystem>
+#include <opencv2/imgproc.hpp>
+#include <random>
+
+#include "optinav/maploc/frame_synth.h"
+#include "optinav/maploc/locator.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using namespace optinav;
+
+fs::path SharedData() {
+  const char* env = std::getenv("OPTINAV_SHARED_DATA");
+  return env ? fs::path(env) : fs::path(OPTINAV_SHARED_DATA_DEFAULT);
+}
+
+fs::path WorkDir() {
+  const fs::path d = fs::temp_directory_path() / "optinav_bench";
+  fs::create_directories(d);
+  return d;
+}
+
+double Median(std::vector<double> v) {
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
+}
+
+struct Medians {
+  std::vector<double> total, extraction, matching, estimation;
+  int localized = 0;
+  void Add(const maploc::LocateResult& r) {
+    total.push_back(r.times.total_ms);
+    extraction.push_back(r.times.extraction_ms);
+    matching.push_back(r.times.matching_ms);
+    estimation.push_back(r.times.estimation_ms);
+    localized += r.localized;
+  }
+  void Report(benchmark::State& state) const {
+    state.counters["median_ms"] = Median(total);
+    state.counters["extract_ms"] = Median(extraction);
+    state.counters["match_ms"] = Median(matching);
+    state.counters["estimate_ms"] = Median(estimation);
+    state.counters["localized"] = localized;
+    state.counters["frames"] = static_cast<double>(total.size());
+  }
+};
+
+// NAIP 2009 upsampled 2x (2.5 m/px, 1868 x 1448) so that 640x480 frames at 2.5 m/px fill
+// tiles with about 1024 ORB features each.
+const maploc::MapDatabase& PriorMap(std::string* tif_out) {
+  static std::string tif;
+  static const maploc::MapDatabase db = [] {
+    const geo::GeoRaster src =
+        geo::GeoRaster::Open((SharedData() / "geo/naip/naip_20090818.tif").string());
+    const cv::Mat gray = src.ReadGray(0, 0, src.width(), src.height(), 2 * src.width(), 2 * src.height());
+    geo::GeoTransform gt = src.transform();
+    gt.c[1] /= 2;
+    gt.c[5] /= 2;
+    tif = (WorkDir() / "naip2009_2x.tif").string();
+    geo::WriteGeoTiff(tif, gray, gt, src.crs_wkt());
+    maploc::MapBuildOptions o;
+    o.frame_width = 640;
+    o.frame_height = 480;
+    o.hfov_deg = 60;
+    o.altitude_m = 0.5 * 640 * 2.5 / std::tan(30 * M_PI / 180);
+    return maploc::BuildMapDatabase(tif, o, (WorkDir() / "naip2009_2x.db").string());
+  }();
+  *tif_out = tif;
+  return db;
+}
+
+void BM_LocateWithPrior(benchmark::State& state) {
+  std::string tif;
+  const maploc::MapDatabase& db = PriorMap(&tif);
+  const geo::GeoRaster raster = geo::GeoRaster::Open(tif);
+  maploc::LocateOptions lo;
+  lo.max_candidate_tiles = 9;
+  lo.frame_features = 600;
+  lo.allow_orientation_correlation = false;
+  maploc::Locator locator(db, lo);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u01(0, 1);
+  std::vector<cv::Mat> frames;
+  std::vector<maploc::Prior> priors;
+  for (int i = 0; i < 40; ++i) {
+    maploc::FrameSpec s;
+    s.width = 640;
+    s.height = 480;
+    s.gsd_m = 2.5;
+    s.heading_deg = 360 * u01(rng);
+    s.centre_px = {420 + (db.width - 840) * u01(rng), 420 + (db.height - 840) * u01(rng)};
+    frames.push_back(maploc::SynthesizeFrame(raster, db.map_gsd_m, s));
+    maploc::Prior p;
+    p.position = locator.PixelToLatLon(s.centre_px + Eigen::Vector2d(30 * u01(rng), 30 * u01(rng)));
+    p.radius_m = 300;
+    priors.push_back(p);
+  }
+  Medians m;
+  size_t candidates = 0;
+  for (auto _ : state) {
+    for (size_t i = 0; i < frames.size(); ++i) {
+      const auto r = locator.LocateByFeatures(frames[i], priors[i]);
+      m.Add(r);
+      candidates += r.candidate_tiles.size();
+    }
+  }
+  m.Report(state);
+  state.counters["candidate_tiles"] = static_cast<double>(candidates) / m.total.size();
+  state.counters["features_per_tile"] = static_cast<double>(db.FeatureCount()) / db.tiles.size();
+}
+BENCHMARK(BM_LocateWithPrior)->Unit(benchmark::kMillisecond)->Iterations(2);
+
+void BM_OrientationCorrelation(benchmark::State& state) {
+  static const maploc::MapDatabase db = [] {
+    maploc::MapBuildOptions o;
+    o.frame_width = o.frame_height = 256;
+    o.hfov_deg = 90;
+    o.altitude_m = 640;
+    return maploc::BuildMapDatabase((SharedData() / "geo/naip/naip_20090818.tif").string(), o,
+                                    (WorkDir() / "naip2009.db").string());
+  }();
+  const geo::GeoRaster flight =
+      geo::GeoRaster::Open((SharedData() / "geo/naip/naip_20170827.tif").string());
+  maploc::Locator locator(db);
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> u01(0, 1);
+  std::vector<cv::Mat> frames;
+  std::vector<maploc::Prior> priors;
+  std::vector<Eigen::Vector2d> truth;
+  const geo::CrsTransform crs(db.crs_wkt);
+  for (int i = 0; i < 30; ++i) {
+    maploc::FrameSpec s;
+    s.width = s.height = 256;
+    s.gsd_m = 5;
+    s.heading_deg = 360 * u01(rng);
+    s.centre_px = {182 + (flight.width() - 364) * u01(rng), 182 + (flight.height() - 364) * u01(rng)};
+    frames.push_back(maploc::SynthesizeFrame(flight, 5.0, s));
+    const Eigen::Vector2d t = flight.transform().PixelToCrs(s.centre_px);
+    truth.push_back(t);
+    maploc::Prior p;
+    p.position = crs.ToLatLon(t + Eigen::Vector2d(150 * (u01(rng) - 0.5), 150 * (u01(rng) - 0.5)));
+    p.radius_m = 250;
+    p.heading_deg = s.heading_deg + 16 * (u01(rng) - 0.5);
+    p.heading_sigma_deg = 10;
+    priors.push_back(p);
+  }
+  locator.LocateByOrientationCorrelation(frames[0], priors[0]);  // warm the map cache
+  Medians m;
+  std::vector<double> errors;
+  for (auto _ : state) {
+    for (size_t i = 0; i < frames.size(); ++i) {
+      const auto r = locator.LocateByOrientationCorrelation(frames[i], priors[i]);
+      m.Add(r);
+      if (r.localized) errors.push_back((r.crs_xy - truth[i]).norm());
+    }
+  }
+  m.Report(state);
+  state.counters["median_error_m"] = errors.empty() ? -1 : Median(errors);
+}
+BENCHMARK(BM_OrientationCorrelation)->Unit(benchmark::kMillisecond)->Iterations(2);
+
+}  // namespace
+
+BENCHMARK_MAIN();
