@@ -80,6 +80,51 @@ expect_error "missing file" "cannot open" "$BIN" eval ape "$WORK/nope.txt" "$WOR
 expect_error "bad delta" "--delta" "$BIN" eval rpe "$WORK/two.txt" "$WORK/two.txt" --delta 0
 expect_error "unknown command" "unknown command" "$BIN" fly
 
+
+# --- Map localization (issue: map-based localization).
+NAIP="$DATA/geo/naip"
+expect_ok "map build" "$BIN" map build --ortho "$NAIP/naip_20090818.tif" --altitude 640 --hfov 90 \
+  --frame-size 256x256 --out "$WORK/naip.db"
+[[ -f "$WORK/naip.db" && ! -e "$WORK/naip.db.tmp" ]] || fail "map build output"
+expect_ok "map info" "$BIN" map info "$WORK/naip.db"
+grep -q "NAD83 / UTM zone 14N" "$WORK/out.txt" || fail "map info lacks the CRS"
+expect_ok "map info json" "$BIN" map info "$WORK/naip.db" --json
+grep -q '"tiles"' "$WORK/out.txt" || fail "map info --json lacks tiles"
+expect_error "map build without georeference" "georeference" "$BIN" map build \
+  --ortho "$DATA/images/graf1.png" --altitude 100 --hfov 60 --frame-size 640x480 --out "$WORK/x.db"
+[[ ! -e "$WORK/x.db" ]] || fail "failed build left a database"
+expect_error "map build bad frame size" "--frame-size" "$BIN" map build \
+  --ortho "$NAIP/naip_20090818.tif" --altitude 100 --hfov 60 --frame-size 640by480 --out "$WORK/x.db"
+expect_error "map info on a non-database" "not a valid optinav map database" "$BIN" map info \
+  "$WORK/short.txt"
+expect_error "locate unreadable image" "cannot read image" "$BIN" map locate \
+  --map "$WORK/naip.db" --image "$WORK/short.txt"
+expect_error "locate prior outside map" "outside the map" "$BIN" map locate \
+  --map "$WORK/naip.db" --image "$DATA/images/graf1.png" --prior 10,10
+expect_error "locate bad prior" "--prior" "$BIN" map locate \
+  --map "$WORK/naip.db" --image "$DATA/images/graf1.png" --prior 47.0
+# A frame of another place: not localized, with a reason, exit 0.
+expect_ok "locate foreign frame" "$BIN" map locate --map "$WORK/naip.db" \
+  --image "$DATA/images/box_in_scene.png" --json
+grep -q '"localized": false' "$WORK/out.txt" || fail "foreign frame was localized"
+grep -q '"reason"' "$WORK/out.txt" || fail "no reason for a failed fix"
+# A frame rendered from the 2017 image, localized on the 2009 map.
+expect_ok "map render" "$BIN" map render --ortho "$NAIP/naip_20170827.tif" --at 47.0186,-99.1526 \
+  --heading 35 --frame-size 256x256 --out "$WORK/f2017.png"
+expect_ok "locate with prior and heading" "$BIN" map locate --map "$WORK/naip.db" \
+  --image "$WORK/f2017.png" --prior 47.0195,-99.1510 --radius 250 --heading 30 --json
+grep -q '"localized": true' "$WORK/out.txt" || fail "rendered 2017 frame not localized"
+lat=$(grep '"lat"' "$WORK/out.txt" | tr -dc '0-9.-'); lon=$(grep '"lon"' "$WORK/out.txt" | tr -dc '0-9.-')
+awk -v a="$lat" -v b="$lon" 'BEGIN { d = sqrt(((a - 47.0186) * 111200)^2 + ((b + 99.1526) * 75800)^2);
+  exit !(d < 25) }' || fail "rendered frame localized $lat,$lon, more than 25 m from 47.0186,-99.1526"
+expect_error "render outside" "outside the orthophoto" "$BIN" map render \
+  --ortho "$NAIP/naip_20170827.tif" --at 10,10 --out "$WORK/o.png"
+printf 'image,prior_lat,prior_lon,radius_m,heading_deg,heading_sigma_deg\n%s,,,,,\n%s,,,,,\n' \
+  "$DATA/images/box.png" "$WORK/missing.png" > "$WORK/list.csv"
+expect_ok "locate list" "$BIN" map locate --map "$WORK/naip.db" --images-from "$WORK/list.csv"
+[[ $(wc -l < "$WORK/out.txt") -eq 2 ]] || fail "locate list: expected 2 JSON lines"
+grep -q 'missing.png' "$WORK/out.txt" || fail "locate list lacks the missing image's line"
+
 # A failed run never clobbers an existing output.
 echo "keep me" > "$WORK/keep.json"
 "$BIN" eval ape "$WORK/nan.txt" "$WORK/nan.txt" --json "$WORK/keep.json" >/dev/null 2>&1

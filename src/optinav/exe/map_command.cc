@@ -9,6 +9,7 @@
 
 #include "optinav/exe/commands.h"
 #include "optinav/io/text_parse.h"
+#include "optinav/maploc/frame_synth.h"
 #include "optinav/maploc/locator.h"
 #include "optinav/util/logging.h"
 #include "optinav/util/timer.h"
@@ -262,6 +263,39 @@ int RunLocate(const LocateArgs& a) {
   return 0;
 }
 
+struct RenderArgs {
+  std::string ortho, at, out, frame_size = "640x480";
+  double heading_deg = 0, gsd_m = 0, tilt_deg = 0, tilt_azimuth_deg = 0;
+};
+
+// Renders a synthetic camera frame from an orthophoto (for trying `locate`, tests, demos).
+int RunRender(const RenderArgs& a) {
+  const geo::GeoRaster raster = geo::GeoRaster::Open(a.ortho);
+  const geo::CrsTransform crs(raster.crs_wkt());
+  maploc::FrameSpec s;
+  if (std::sscanf(a.frame_size.c_str(), "%dx%d", &s.width, &s.height) != 2 || s.width < 16 ||
+      s.height < 16) {
+    throw Error("expected WxH, e.g. 640x480, got '" + a.frame_size + "'", {.field = "--frame-size"});
+  }
+  const geo::LatLon at = ParseLatLon(a.at, "--at");
+  s.centre_px = raster.transform().CrsToPixel(crs.FromLatLon(at));
+  if (s.centre_px.x() < 0 || s.centre_px.y() < 0 || s.centre_px.x() > raster.width() ||
+      s.centre_px.y() > raster.height()) {
+    throw Error("position lies outside the orthophoto", {.field = "--at"});
+  }
+  const double map_gsd = raster.transform().UnitsPerPixel() *
+                         crs.MetresPerUnit(raster.transform().PixelToCrs(s.centre_px));
+  s.gsd_m = a.gsd_m > 0 ? a.gsd_m : map_gsd;
+  s.heading_deg = a.heading_deg;
+  s.tilt_deg = a.tilt_deg;
+  s.tilt_azimuth_deg = a.tilt_azimuth_deg;
+  const cv::Mat frame = maploc::SynthesizeFrame(raster, map_gsd, s);
+  if (!cv::imwrite(a.out, frame)) throw Error("cannot write image", {.file = a.out});
+  std::printf("rendered %s: %dx%d at %.3f m/px, heading %.1f deg, centre %.7f,%.7f\n",
+              a.out.c_str(), s.width, s.height, s.gsd_m, s.heading_deg, at.lat_deg, at.lon_deg);
+  return 0;
+}
+
 }  // namespace
 
 int RunMap(int argc, char** argv) {
@@ -308,6 +342,16 @@ int RunMap(int argc, char** argv) {
   locate->add_option("--ortho", la.ortho, "orthophoto path if moved since the build (for oc)");
   locate->add_option("--method", la.method, "auto|features|oc")->capture_default_str();
   locate->add_flag("--json", la.json, "print the result as JSON");
+  CLI::App* render = app.add_subcommand("render", "render a synthetic camera frame from a GeoTIFF");
+  RenderArgs ra;
+  render->add_option("--ortho", ra.ortho, "orthophoto (GeoTIFF)")->required();
+  render->add_option("--at", ra.at, "ground point under the frame centre LAT,LON")->required();
+  render->add_option("--heading", ra.heading_deg, "frame up direction, deg clockwise from north");
+  render->add_option("--gsd", ra.gsd_m, "metres per frame pixel (default: the map's)");
+  render->add_option("--frame-size", ra.frame_size, "WxH")->capture_default_str();
+  render->add_option("--tilt", ra.tilt_deg, "camera tilt from nadir (deg)");
+  render->add_option("--tilt-azimuth", ra.tilt_azimuth_deg, "tilt direction in the frame (deg)");
+  render->add_option("--out", ra.out, "output image (PNG, JPEG)")->required();
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -315,6 +359,7 @@ int RunMap(int argc, char** argv) {
   }
   try {
     SetLogLevel(log_level);
+    if (render->parsed()) return RunRender(ra);
     if (build->parsed()) {
       const auto ft = features::ParseFeatureType(feature_name);
       if (!ft) throw Error("unknown feature type '" + feature_name + "' (orb|sift)", {.field = "--features"});

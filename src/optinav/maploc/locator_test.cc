@@ -200,7 +200,7 @@ MapDatabase* NaipMap::db_ = nullptr;
 
 TEST_F(NaipMap, FramesFromLaterYearsWithHeading) {
   for (const char* year : {"20120731", "20170827"}) {
-    const Outcome o = Run(year, 40, /*with_heading=*/true, 7, 2.0);
+    const Outcome o = Run(year, 50, /*with_heading=*/true, 7, 3.0);
     std::printf("NAIP map 2009, frames %s, heading +-10 deg: %d/%d within 25 m (threshold 95 %%), "
                 "median error %.2f m (threshold 10)\n",
                 year, o.good, o.frames, Median(o.errors));
@@ -212,7 +212,7 @@ TEST_F(NaipMap, FramesFromLaterYearsWithHeading) {
 TEST_F(NaipMap, FramesFromLaterYearsWithoutHeading) {
   int good = 0, frames = 0;
   for (const char* year : {"20120731", "20170827"}) {
-    const Outcome o = Run(year, 15, /*with_heading=*/false, 11, 3.0);
+    const Outcome o = Run(year, 25, /*with_heading=*/false, 11, 3.0);
     std::printf("NAIP map 2009, frames %s, no heading: %d/%d within 25 m, median %.2f m\n", year,
                 o.good, o.frames, Median(o.errors));
     good += o.good;
