@@ -115,9 +115,8 @@ struct Locator::Impl {
   LocateOptions options;
   geo::CrsTransform crs;
   std::unique_ptr<features::FeatureExtractor> extractor;
-  // Global descriptor index (built on first use).
+  // Global search sample of map descriptors (built on first use).
   std::once_flag index_once;
-  std::unique_ptr<cv::flann::Index> index;
   cv::Mat all_descriptors;
   std::vector<int> descriptor_tile;
   // Orthophoto and its orientation fields for orientation correlation (built on first use).
@@ -172,20 +171,17 @@ struct Locator::Impl {
   }
 
   void BuildIndex() {
+    // A sample of every tile's core features: enough to vote for the right area, small enough
+    // for a brute-force POPCNT search (faster here than an LSH index, and exact).
     std::vector<cv::Mat> parts;
     for (const MapTile& t : db.tiles) {
-      if (t.descriptors.empty()) continue;
-      parts.push_back(t.descriptors);
-      descriptor_tile.insert(descriptor_tile.end(), t.descriptors.rows, t.index);
+      const cv::Mat& core = core_descriptors[t.index];
+      if (core.empty()) continue;
+      const int k = std::min(core.rows, options.global_features_per_tile);
+      parts.push_back(core.rowRange(0, k));
+      descriptor_tile.insert(descriptor_tile.end(), k, t.index);
     }
-    if (parts.empty()) return;
-    cv::vconcat(parts, all_descriptors);
-    if (all_descriptors.type() == CV_8U) {
-      index = std::make_unique<cv::flann::Index>(all_descriptors, cv::flann::LshIndexParams(12, 20, 2),
-                                                 cvflann::FLANN_DIST_HAMMING);
-    } else {
-      index = std::make_unique<cv::flann::Index>(all_descriptors, cv::flann::KDTreeIndexParams(4));
-    }
+    if (!parts.empty()) cv::vconcat(parts, all_descriptors);
   }
 
   const geo::GeoRaster* Ortho() {
@@ -319,21 +315,14 @@ LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior)
     // Global search: vote tiles through an approximate nearest-neighbour index of all map
     // descriptors, then verify the best tiles and their neighbours geometrically.
     std::call_once(im.index_once, [&] { im.BuildIndex(); });
-    if (!im.index) {
+    if (im.all_descriptors.empty()) {
       r.reason = "the map has no features";
       return r;
     }
-    cv::Mat idx, dist;
-    im.index->knnSearch(ff.descriptors, idx, dist, 2, cv::flann::SearchParams(32));
+    const cv::Mat query = ff.descriptors.rowRange(0, std::min(ff.descriptors.rows, im.options.global_query_features));
+    const auto votes_m = features::MatchWithRatio(query, im.all_descriptors, ff.norm, im.options.ratio);
     std::vector<double> votes(db.tiles.size(), 0.0);
-    for (int i = 0; i < idx.rows; ++i) {
-      const int a = idx.at<int>(i, 0), b = idx.at<int>(i, 1);
-      if (a < 0) continue;
-      const float da = dist.type() == CV_32F ? dist.at<float>(i, 0) : static_cast<float>(dist.at<int>(i, 0));
-      const float db2 = dist.type() == CV_32F ? dist.at<float>(i, 1) : static_cast<float>(dist.at<int>(i, 1));
-      if (b >= 0 && !(da < im.options.ratio * db2)) continue;
-      votes[im.descriptor_tile[a]] += 1.0;
-    }
+    for (const auto& m : votes_m) votes[im.descriptor_tile[m.trainIdx]] += 1.0;
     std::vector<int> order(db.tiles.size());
     for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
     std::sort(order.begin(), order.end(), [&](int a, int b) { return votes[a] > votes[b]; });

@@ -5,7 +5,7 @@
 //    core cell, so overlapping tiles never offer a map point twice), best N per tile, matches in
 //    map pixels de-duplicated on a grid, robust homography (USAC MAGSAC++) with degeneracy
 //    checks; the frame centre goes through the homography to the map. Candidates come from the
-//    prior or, without one, from a global vote over an LSH index of all map descriptors.
+//    prior or, without one, from a global vote against a sample of every tile's descriptors.
 //  - orientation correlation (for appearance change, e.g. a map years older than the flight):
 //    dense correlation of doubled-angle gradient orientations between the frame, rotated over the
 //    heading uncertainty, and the map around the prior, by FFT. Needs a prior and reads the
@@ -39,7 +39,9 @@ struct LocateOptions {
   float ratio = 0.8f;               // Lowe's ratio
   int top_n_per_tile = 300;         // best matches kept per tile
   int max_candidate_tiles = 9;      // nearest tiles to the prior that are matched
-  int global_verify_tiles = 4;      // best-voted tiles verified in a global search
+  int global_verify_tiles = 3;      // best-voted tiles verified (with neighbours) globally
+  int global_features_per_tile = 64;  // map features per tile that vote in a global search
+  int global_query_features = 500;    // frame features that vote
   double dedupe_cell_px = 2.0;      // grid cell (map pixels at feature resolution)
   features::HomographyOptions homography{.reprojection_threshold_px = 4.0, .min_inliers = 15};
   bool allow_orientation_correlation = true;
