@@ -46,7 +46,7 @@ struct LocateOptions {
   features::HomographyOptions homography{.reprojection_threshold_px = 4.0, .min_inliers = 15};
   bool allow_orientation_correlation = true;
   double oc_heading_step_deg = 3.0;  // heading step of the coarse correlation search
-  int oc_coarse_px = 96;             // frame size across at the coarse correlation level
+  int oc_coarse_px = 64;             // frame size across at the coarse correlation level
   double oc_min_peak_ratio = 1.15;   // best peak / best peak elsewhere
   int frame_features = 1024;         // features taken from the frame
   // ORB pyramid levels for the frame (x1.2 each): the map tiles carry 8 levels already, so 5
