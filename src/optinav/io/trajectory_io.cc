@@ -44,15 +44,29 @@ void AddChecked(int64_t t, double w, double x, double y, double z, const Eigen::
   traj->rotations.push_back(Eigen::Quaterniond(w * inv, x * inv, y * inv, z * inv).toRotationMatrix());
 }
 
-void WarnRepeats(const std::string& path, size_t repeats) {
-  if (repeats > 0) spdlog::warn("{}: {} repeated timestamp(s)", path, repeats);
-}
+// The two timestamped one-pose-per-line layouts.
+struct PoseLineFormat {
+  char delim;             // ' ' (runs of blanks) or ','
+  bool time_in_seconds;   // else integer nanoseconds
+  bool extra_columns_ok;  // EuRoC ground truth carries velocity and biases after the pose
+  bool quaternion_wxyz;   // else x y z w
+  const char* const* field_names;
+  const char* layout;     // for error messages
+  size_t bytes_per_line;  // for reserving
+};
 
-Trajectory ReadTum(const std::string& path) {
+constexpr PoseLineFormat kTumFormat{' ', true, false, false, kTumFields,
+                                    "8 values 't x y z qx qy qz qw' (TUM)", 64};
+constexpr PoseLineFormat kEurocFormat{',', false, true, true, kEurocFields,
+                                      "8 comma-separated values 'timestamp [ns], px, py, pz, qw, "
+                                      "qx, qy, qz' (EuRoC)",
+                                      100};
+
+Trajectory ReadPoseLines(const std::string& path, const PoseLineFormat& lf) {
   const MappedFile file(path);
   const std::string_view text = file.view();
   Trajectory traj;
-  traj.Reserve(text.size() / 64 + 1, true);
+  traj.Reserve(text.size() / lf.bytes_per_line + 1, true);
   LineCursor cursor(text);
   std::string_view line;
   std::vector<std::string_view> f;
@@ -61,67 +75,36 @@ Trajectory ReadTum(const std::string& path) {
   while (cursor.Next(&line)) {
     if (IsCommentOrBlank(line)) continue;
     int64_t t = 0;
-    const bool fast = ParseNumberLine(line, ' ', 8, /*first_as_seconds=*/true, false, &t, v);
+    const bool fast = ParseNumberLine(line, lf.delim, 8, lf.time_in_seconds, !lf.time_in_seconds,
+                                      &t, v, lf.extra_columns_ok ? 8 : -1);
     // The context (a string copy) is built only when needed: errors and the slow path.
     auto context = [&] { return ErrorContext{.file = path, .line = cursor.line_number()}; };
     if (!fast) {
-      ErrorContext ctx = context();
       // Slow path: re-parse field by field to say exactly what is wrong.
-      SplitFields(line, ' ', &f);
-      if (f.size() != 8) {
-        throw Error(
-            fmt::format("expected 8 values 't x y z qx qy qz qw' (TUM), found {}", f.size()), ctx);
-      }
-      ctx.field = kTumFields[0];
-      t = ParseSecondsToNs(f[0], ctx);
-      for (int k = 1; k < 8; ++k) {
-        ctx.field = kTumFields[k];
-        v[k] = ParseFiniteDouble(f[k], ctx);
-      }
-    }
-    AddChecked(t, v[7], v[4], v[5], v[6], Eigen::Vector3d(v[1], v[2], v[3]), "qx qy qz qw", "t",
-               context, &traj, &repeats);
-  }
-  WarnRepeats(path, repeats);
-  return traj;
-}
-
-Trajectory ReadEuroc(const std::string& path) {
-  const MappedFile file(path);
-  const std::string_view text = file.view();
-  Trajectory traj;
-  traj.Reserve(text.size() / 100 + 1, true);
-  LineCursor cursor(text);
-  std::string_view line;
-  std::vector<std::string_view> f;
-  double v[8];
-  size_t repeats = 0;
-  while (cursor.Next(&line)) {
-    if (IsCommentOrBlank(line)) continue;
-    int64_t t = 0;
-    const bool fast =
-        ParseNumberLine(line, ',', 8, false, /*first_as_int_ns=*/true, &t, v, /*min_count=*/8);
-    auto context = [&] { return ErrorContext{.file = path, .line = cursor.line_number()}; };
-    if (!fast) {
       ErrorContext ctx = context();
-      SplitFields(line, ',', &f);
-      if (f.size() < 8) {
-        throw Error(fmt::format("expected at least 8 comma-separated values "
-                                "'timestamp [ns], px, py, pz, qw, qx, qy, qz' (EuRoC), found {}",
-                                f.size()),
+      SplitFields(line, lf.delim, &f);
+      if (f.size() < 8 || (!lf.extra_columns_ok && f.size() != 8)) {
+        throw Error(fmt::format("expected {}{}, found {}", lf.extra_columns_ok ? "at least " : "",
+                                lf.layout, f.size()),
                     ctx);
       }
-      ctx.field = kEurocFields[0];
-      t = ParseInt64(f[0], ctx);
+      ctx.field = lf.field_names[0];
+      t = lf.time_in_seconds ? ParseSecondsToNs(f[0], ctx) : ParseInt64(f[0], ctx);
       for (int k = 1; k < 8; ++k) {
-        ctx.field = kEurocFields[k];
+        ctx.field = lf.field_names[k];
         v[k] = ParseFiniteDouble(f[k], ctx);
       }
     }
-    AddChecked(t, v[4], v[5], v[6], v[7], Eigen::Vector3d(v[1], v[2], v[3]), "qw qx qy qz",
-               "timestamp", context, &traj, &repeats);
+    const Eigen::Vector3d p(v[1], v[2], v[3]);
+    if (lf.quaternion_wxyz) {
+      AddChecked(t, v[4], v[5], v[6], v[7], p, "qw qx qy qz", lf.field_names[0], context, &traj,
+                 &repeats);
+    } else {
+      AddChecked(t, v[7], v[4], v[5], v[6], p, "qx qy qz qw", lf.field_names[0], context, &traj,
+                 &repeats);
+    }
   }
-  WarnRepeats(path, repeats);
+  if (repeats > 0) spdlog::warn("{}: {} repeated timestamp(s)", path, repeats);
   return traj;
 }
 
@@ -254,9 +237,9 @@ Trajectory ReadTrajectory(const std::string& path, const TrajectoryReadOptions& 
   if (format == TrajectoryFormat::kAuto) format = DetectTrajectoryFormat(path);
   Trajectory traj;
   switch (format) {
-    case TrajectoryFormat::kTum: traj = ReadTum(path); break;
+    case TrajectoryFormat::kTum: traj = ReadPoseLines(path, kTumFormat); break;
     case TrajectoryFormat::kKitti: traj = ReadKitti(path, options.kitti_times_path); break;
-    case TrajectoryFormat::kEuroc: traj = ReadEuroc(path); break;
+    case TrajectoryFormat::kEuroc: traj = ReadPoseLines(path, kEurocFormat); break;
     case TrajectoryFormat::kAuto: break;
   }
   if (traj.empty()) {
