@@ -313,7 +313,7 @@ int RunMap(int argc, char** argv) {
   build->add_option("--frame-size", frame_size, "camera frame size WxH (px)")->required();
   build->add_option("--scale-factor", bo.scale_factor, "tile side / frame footprint")->capture_default_str();
   build->add_option("--overlap", bo.overlap, "fraction shared by neighbouring tiles")->capture_default_str();
-  build->add_option("--features", feature_name, "orb|sift")->capture_default_str();
+  build->add_option("--features", feature_name, "orb|sift|brisk")->capture_default_str();
   build->add_option("--max-features", bo.max_features, "features per tile")->capture_default_str();
   build->add_option("--threads", bo.threads, "worker threads (0: all cores)")->capture_default_str();
   build->add_option("--out", out, "output database (SQLite)")->required();
@@ -362,7 +362,7 @@ int RunMap(int argc, char** argv) {
     if (render->parsed()) return RunRender(ra);
     if (build->parsed()) {
       const auto ft = features::ParseFeatureType(feature_name);
-      if (!ft) throw Error("unknown feature type '" + feature_name + "' (orb|sift)", {.field = "--features"});
+      if (!ft) throw Error("unknown feature type '" + feature_name + "' (orb|sift|brisk)", {.field = "--features"});
       bo.feature_type = *ft;
       if (std::sscanf(frame_size.c_str(), "%dx%d", &bo.frame_width, &bo.frame_height) != 2) {
         throw Error("expected WxH, e.g. 640x480, got '" + frame_size + "'", {.field = "--frame-size"});

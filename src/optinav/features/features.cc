@@ -28,6 +28,27 @@ class OrbExtractor : public FeatureExtractor {
   cv::Ptr<cv::ORB> orb_;
 };
 
+class BriskExtractor : public FeatureExtractor {
+ public:
+  explicit BriskExtractor(const ExtractorOptions& o) : brisk_(cv::BRISK::create()), max_(o.max_features) {}
+  Features Extract(const cv::Mat& gray, const cv::Mat& mask) const override {
+    Features f;
+    f.norm = cv::NORM_HAMMING;
+    brisk_->detect(gray, f.keypoints, mask);
+    cv::KeyPointsFilter::retainBest(f.keypoints, max_);
+    brisk_->compute(gray, f.keypoints, f.descriptors);
+    return f;
+  }
+  std::string name() const override { return "brisk"; }
+  int norm() const override { return cv::NORM_HAMMING; }
+  int descriptor_type() const override { return CV_8U; }
+  int descriptor_size() const override { return 64; }
+
+ private:
+  cv::Ptr<cv::BRISK> brisk_;
+  int max_;
+};
+
 class SiftExtractor : public FeatureExtractor {
  public:
   explicit SiftExtractor(const ExtractorOptions& o) : sift_(cv::SIFT::create(o.max_features)) {}
@@ -51,10 +72,18 @@ class SiftExtractor : public FeatureExtractor {
 std::optional<FeatureType> ParseFeatureType(const std::string& name) {
   if (name == "orb") return FeatureType::kOrb;
   if (name == "sift") return FeatureType::kSift;
+  if (name == "brisk") return FeatureType::kBrisk;
   return std::nullopt;
 }
 
-std::string FeatureTypeName(FeatureType type) { return type == FeatureType::kOrb ? "orb" : "sift"; }
+std::string FeatureTypeName(FeatureType type) {
+  switch (type) {
+    case FeatureType::kOrb: return "orb";
+    case FeatureType::kSift: return "sift";
+    case FeatureType::kBrisk: return "brisk";
+  }
+  return "?";
+}
 
 std::string ExtractorOptions::Check() const {
   if (max_features < 4 || max_features > 100000) {
@@ -67,7 +96,52 @@ std::string ExtractorOptions::Check() const {
 
 std::unique_ptr<FeatureExtractor> CreateFeatureExtractor(const ExtractorOptions& options) {
   if (options.type == FeatureType::kSift) return std::make_unique<SiftExtractor>(options);
+  if (options.type == FeatureType::kBrisk) return std::make_unique<BriskExtractor>(options);
   return std::make_unique<OrbExtractor>(options);
+}
+
+Features ExtractAffineSimulated(const FeatureExtractor& extractor, const cv::Mat& gray,
+                                double max_tilt) {
+  Features out;
+  out.norm = extractor.norm();
+  std::vector<cv::Mat> descriptors;
+  for (double t = 1.0; t <= max_tilt + 1e-9; t *= std::sqrt(2.0)) {
+    const double step_deg = t == 1.0 ? 180.0 : 72.0 / t;
+    for (double phi = 0; phi < 180.0 - 1e-9; phi += step_deg) {
+      // view_from_image: rotate by phi into a canvas holding the whole image, squeeze x by t.
+      cv::Matx23d a(1, 0, 0, 0, 1, 0);
+      cv::Mat view = gray;
+      if (phi != 0) {
+        const double c = std::cos(phi * CV_PI / 180), s = std::sin(phi * CV_PI / 180);
+        std::vector<cv::Point2f> corners = {
+            {0, 0}, {static_cast<float>(gray.cols), 0},
+            {static_cast<float>(gray.cols), static_cast<float>(gray.rows)},
+            {0, static_cast<float>(gray.rows)}};
+        for (auto& p : corners) p = cv::Point2f(c * p.x - s * p.y, s * p.x + c * p.y);
+        const cv::Rect box = cv::boundingRect(corners);
+        a = cv::Matx23d(c, -s, -box.x, s, c, -box.y);
+        cv::warpAffine(gray, view, a, box.size(), cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+      }
+      if (t != 1.0) {
+        cv::Mat blurred;
+        cv::GaussianBlur(view, blurred, cv::Size(0, 0), 0.8 * std::sqrt(t * t - 1), 0.01);
+        cv::resize(blurred, view, cv::Size(0, 0), 1.0 / t, 1.0, cv::INTER_NEAREST);
+        for (int k = 0; k < 3; ++k) a(0, k) /= t;
+      }
+      Features f = extractor.Extract(view);
+      cv::Matx23d inv;
+      cv::invertAffineTransform(a, inv);
+      for (auto& kp : f.keypoints) {
+        const cv::Point2f p = kp.pt;
+        kp.pt = cv::Point2f(inv(0, 0) * p.x + inv(0, 1) * p.y + inv(0, 2),
+                            inv(1, 0) * p.x + inv(1, 1) * p.y + inv(1, 2));
+      }
+      out.keypoints.insert(out.keypoints.end(), f.keypoints.begin(), f.keypoints.end());
+      if (!f.descriptors.empty()) descriptors.push_back(f.descriptors);
+    }
+  }
+  if (!descriptors.empty()) cv::vconcat(descriptors, out.descriptors);
+  return out;
 }
 
 namespace {

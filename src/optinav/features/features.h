@@ -11,8 +11,8 @@
 
 namespace optinav::features {
 
-enum class FeatureType { kOrb, kSift };
-std::optional<FeatureType> ParseFeatureType(const std::string& name);  // "orb" | "sift"
+enum class FeatureType { kOrb, kSift, kBrisk };
+std::optional<FeatureType> ParseFeatureType(const std::string& name);  // orb | sift | brisk
 std::string FeatureTypeName(FeatureType type);
 
 struct Features {
@@ -42,6 +42,13 @@ struct ExtractorOptions {
 };
 
 std::unique_ptr<FeatureExtractor> CreateFeatureExtractor(const ExtractorOptions& options);
+
+// Affine-simulated extraction (the idea of ASIFT, Morel and Yu 2009): the image is also seen
+// under simulated camera tilts t = sqrt2, 2, ... up to `max_tilt`, rotated in steps of
+// 72 deg / t; features of every view are mapped back into the original image. Makes an
+// extractor tolerant of strongly oblique views (about 2 t^2 times the work).
+Features ExtractAffineSimulated(const FeatureExtractor& extractor, const cv::Mat& gray,
+                                double max_tilt);
 
 // k = 2 nearest neighbours and Lowe's ratio test; returns query -> train matches sorted by
 // distance. Empty when either side is empty.
