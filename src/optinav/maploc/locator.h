@@ -49,9 +49,9 @@ struct LocateOptions {
   int oc_coarse_px = 64;             // frame size across at the coarse correlation level
   double oc_min_peak_ratio = 1.15;   // best peak / best peak elsewhere
   int frame_features = 1024;         // features taken from the frame
-  // ORB pyramid levels for the frame (x1.2 each): the map tiles carry 8 levels already, so 5
-  // on the frame still spans scale changes of 4x between them, at 25 % less extraction time.
-  int frame_orb_levels = 5;
+  // ORB pyramid levels for the frame (x1.2 each). The map tiles carry 8 levels, so 4 on the
+  // frame still covers the altitude changes tested (+-30 %), at ~40 % less extraction time.
+  int frame_orb_levels = 4;
   std::string ortho_path;            // overrides the database's orthophoto path (for OC)
   std::string Check() const;
 };
