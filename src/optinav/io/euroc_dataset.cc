@@ -130,65 +130,64 @@ std::vector<ImageEntry> ReadImageList(const std::string& data_csv, const std::st
   return out;
 }
 
-std::vector<ImuSample> ReadImuCsv(const std::string& data_csv) {
-  static constexpr const char* kFields[] = {"timestamp", "w_x", "w_y", "w_z", "a_x", "a_y", "a_z"};
+namespace {
+
+// Reads a csv of "timestamp [ns], v1, v2, ..." rows with strictly increasing stamps: the first
+// N values after the stamp (named field_names[1..N]) go to `row(t_ns, values)`. With
+// `extra_ok`, further columns are ignored; without, the count must be exact.
+template <size_t N, typename RowFn>
+void ReadTimedCsv(const std::string& data_csv, const char* const (&field_names)[N + 1],
+                  bool extra_ok, const char* layout, RowFn row) {
   const std::string text = ReadFileToString(data_csv);
   LineCursor cursor(text);
   std::string_view line;
   std::vector<std::string_view> f;
-  std::vector<ImuSample> out;
-  out.reserve(text.size() / 80 + 1);
+  double values[N];
+  int64_t prev = 0;
+  bool first = true;
   while (cursor.Next(&line)) {
     if (IsCommentOrBlank(line)) continue;
     ErrorContext ctx{.file = data_csv, .line = cursor.line_number()};
     SplitFields(line, ',', &f);
-    if (f.size() != 7) {
-      throw Error(fmt::format("expected 7 values 'timestamp, wx, wy, wz, ax, ay, az', found {}",
-                              f.size()),
+    if (f.size() < N + 1 || (!extra_ok && f.size() != N + 1)) {
+      throw Error(fmt::format("expected {}'{}', found {} fields", extra_ok ? "at least " : "",
+                              layout, f.size()),
                   ctx);
     }
-    ImuSample s;
-    ctx.field = kFields[0];
-    s.t_ns = ParseInt64(f[0], ctx);
-    for (int k = 0; k < 3; ++k) {
-      ctx.field = kFields[1 + k];
-      s.gyro_rad_s[k] = ParseFiniteDouble(f[1 + k], ctx);
-      ctx.field = kFields[4 + k];
-      s.accel_m_s2[k] = ParseFiniteDouble(f[4 + k], ctx);
+    ctx.field = field_names[0];
+    const int64_t t = ParseInt64(f[0], ctx);
+    for (size_t k = 0; k < N; ++k) {
+      ctx.field = field_names[k + 1];
+      values[k] = ParseFiniteDouble(f[k + 1], ctx);
     }
-    ctx.field = "timestamp";
-    if (!out.empty()) CheckIncreasing(out.back().t_ns, s.t_ns, ctx);
-    out.push_back(s);
+    ctx.field = field_names[0];
+    if (!first) CheckIncreasing(prev, t, ctx);
+    first = false;
+    prev = t;
+    row(t, values);
   }
+}
+
+}  // namespace
+
+std::vector<ImuSample> ReadImuCsv(const std::string& data_csv) {
+  static constexpr const char* kFields[] = {"timestamp", "w_x", "w_y", "w_z", "a_x", "a_y", "a_z"};
+  std::vector<ImuSample> out;
+  ReadTimedCsv<6>(data_csv, kFields, /*extra_ok=*/false, "timestamp, wx, wy, wz, ax, ay, az",
+                  [&](int64_t t, const double* v) {
+                    out.push_back({t, Eigen::Vector3d(v[0], v[1], v[2]),
+                                   Eigen::Vector3d(v[3], v[4], v[5])});
+                  });
   return out;
 }
 
 std::vector<GnssPositionSample> ReadGnssCsv(const std::string& data_csv) {
   static constexpr const char* kFields[] = {"timestamp", "x", "y", "z"};
-  const std::string text = ReadFileToString(data_csv);
-  LineCursor cursor(text);
-  std::string_view line;
-  std::vector<std::string_view> f;
   std::vector<GnssPositionSample> out;
-  while (cursor.Next(&line)) {
-    if (IsCommentOrBlank(line)) continue;
-    ErrorContext ctx{.file = data_csv, .line = cursor.line_number()};
-    SplitFields(line, ',', &f);
-    if (f.size() < 4) {
-      throw Error(fmt::format("expected 'timestamp [ns], x, y, z', found {} fields", f.size()),
-                  ctx);
-    }
-    GnssPositionSample s;
-    ctx.field = kFields[0];
-    s.t_ns = ParseInt64(f[0], ctx);
-    for (int k = 0; k < 3; ++k) {
-      ctx.field = kFields[1 + k];
-      s.position_enu_m[k] = ParseFiniteDouble(f[1 + k], ctx);
-    }
-    ctx.field = "timestamp";
-    if (!out.empty()) CheckIncreasing(out.back().t_ns, s.t_ns, ctx);
-    out.push_back(s);
-  }
+  ReadTimedCsv<3>(data_csv, kFields, /*extra_ok=*/true, "timestamp [ns], x, y, z",
+                  [&](int64_t t, const double* v) {
+                    out.push_back({t, Eigen::Vector3d(v[0], v[1], v[2])});
+                  });
   return out;
 }
 

@@ -8,9 +8,9 @@
 #include <map>
 #include <mutex>
 #include <Eigen/LU>
-#include <opencv2/flann.hpp>
 #include <opencv2/imgproc.hpp>
 #include <unordered_map>
+#include <unordered_set>
 
 #include "optinav/geo/raster.h"
 #include "optinav/util/timer.h"
@@ -81,10 +81,6 @@ cv::Mat OrientationField(const cv::Mat& gray, const cv::Mat& valid) {
   return out;
 }
 
-}  // namespace
-
-namespace {
-
 // One resolution level of the orthophoto for orientation correlation: the doubled-angle
 // gradient field of the whole map at `gsd` (computed once, then cropped per frame).
 struct OcLevel {
@@ -97,10 +93,6 @@ struct OcPeak {
 };
 
 }  // namespace
-
-struct OcCache {
-  std::map<long, OcLevel> levels;
-};
 
 std::string LocateOptions::Check() const {
   if (!(ratio > 0 && ratio <= 1)) return "ratio must be in (0, 1]";
@@ -120,7 +112,7 @@ struct Locator::Impl {
   cv::Mat all_descriptors;
   std::vector<int> descriptor_tile;
   // Orthophoto and its orientation fields for orientation correlation (built on first use).
-  OcCache oc_cache;
+  std::map<long, OcLevel> oc_levels;  // by gsd in mm
   std::unique_ptr<geo::GeoRaster> ortho;
   std::string ortho_error;
   bool ortho_tried = false;
@@ -312,8 +304,8 @@ LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior)
       candidates.push_back(by_distance[i].second);
     }
   } else {
-    // Global search: vote tiles through an approximate nearest-neighbour index of all map
-    // descriptors, then verify the best tiles and their neighbours geometrically.
+    // Global search: frame descriptors vote for tiles against a sample of every tile's
+    // descriptors, then the best tiles and their neighbours are verified geometrically.
     std::call_once(im.index_once, [&] { im.BuildIndex(); });
     if (im.all_descriptors.empty()) {
       r.reason = "the map has no features";
@@ -366,16 +358,17 @@ LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior)
     cv::vconcat(parts, train);
     const auto matches = features::MatchWithRatio(ff.descriptors, train, ff.norm, im.options.ratio);
     std::unordered_map<int, int> per_tile;
-    std::unordered_map<int64_t, bool> seen;
+    // Several frame features (e.g. one corner at two pyramid levels) can match map features at
+    // the same place: keep the best match per map grid cell.
+    std::unordered_set<int64_t> seen;
     const double cell = im.options.dedupe_cell_px * db.feature_gsd_m / db.map_gsd_m;
     for (const auto& m : matches) {  // sorted by distance: best first
       const auto [tile, k] = owner[m.trainIdx];
       if (++per_tile[tile] > im.options.top_n_per_tile) continue;
       const cv::Point2f mp = db.tiles[tile].keypoints[k];
-      const int64_t key = (static_cast<int64_t>(m.queryIdx) << 40) ^
-                          (static_cast<int64_t>(std::floor(mp.x / cell)) << 20) ^
+      const int64_t key = (static_cast<int64_t>(std::floor(mp.x / cell)) << 32) ^
                           static_cast<int64_t>(std::floor(mp.y / cell));
-      if (!seen.emplace(key, true).second) continue;
+      if (!seen.insert(key).second) continue;
       src.push_back(ff.keypoints[m.queryIdx].pt * static_cast<float>(1.0 / to_feature));
       dst.push_back(mp);
     }
@@ -457,8 +450,8 @@ LocateResult Locator::LocateByOrientationCorrelation(const cv::Mat& frame, const
   const double coarse_gsd = 2.0 * fine_gsd;
   auto level = [&](double gsd) -> const OcLevel& {
     const long key = std::lround(gsd * 1000.0);
-    auto it = im.oc_cache.levels.find(key);
-    if (it != im.oc_cache.levels.end()) return it->second;
+    auto it = im.oc_levels.find(key);
+    if (it != im.oc_levels.end()) return it->second;
     OcLevel l;
     l.gsd = gsd;
     const double k = db.map_gsd_m / gsd;
@@ -468,7 +461,7 @@ LocateResult Locator::LocateByOrientationCorrelation(const cv::Mat& frame, const
     const cv::Mat img = ortho->ReadGray(0, 0, db.width, db.height, w, h, &valid);
     cv::erode(valid, valid, cv::Mat(), cv::Point(-1, -1), 2);
     l.field = OrientationField(img, valid);
-    return im.oc_cache.levels.emplace(key, std::move(l)).first->second;
+    return im.oc_levels.emplace(key, std::move(l)).first->second;
   };
   const Eigen::Vector2d north_px = HeadingToPixelDirection(0.0);
   const double grid_rot = std::atan2(north_px.x(), -north_px.y());  // map north vs -y
