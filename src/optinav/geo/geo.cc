@@ -37,6 +37,22 @@ Eigen::Vector2d GeoTransform::CrsToPixel(const Eigen::Vector2d& xy) const {
   return {(c[5] * dx - c[2] * dy) / det, (-c[4] * dx + c[1] * dy) / det};
 }
 
+double GeoTransform::PixelDirectionToAzimuthDeg(const Eigen::Vector2d& d) const {
+  const double east = c[1] * d.x() + c[2] * d.y();
+  const double north = c[4] * d.x() + c[5] * d.y();
+  const double h = std::atan2(east, north) * 180.0 / M_PI;
+  return h < 0 ? h + 360.0 : h;
+}
+
+Eigen::Vector2d GeoTransform::AzimuthDegToPixelDirection(double azimuth_deg) const {
+  const double a = azimuth_deg * M_PI / 180.0;
+  const double east = std::sin(a), north = std::cos(a);
+  const double det = c[1] * c[5] - c[2] * c[4];
+  if (std::abs(det) < 1e-300) throw Error("singular geotransform");
+  return Eigen::Vector2d((c[5] * east - c[2] * north) / det, (-c[4] * east + c[1] * north) / det)
+      .normalized();
+}
+
 double GeoTransform::UnitsPerPixel() const { return std::sqrt(std::abs(c[1] * c[5] - c[2] * c[4])); }
 
 struct CrsTransform::Impl {

@@ -32,6 +32,11 @@ struct GeoTransform {
   // Ground size of one pixel (sqrt of the area it covers), in CRS units.
   double UnitsPerPixel() const;
   bool IsNorthUp() const { return c[2] == 0 && c[4] == 0 && c[1] > 0 && c[5] < 0; }
+  // Grid azimuth (deg clockwise from grid north, [0, 360)) of a direction in pixels, and the
+  // unit pixel direction of a grid azimuth. Grid north differs from true north by the
+  // meridian convergence of the projection (well under a degree near a UTM zone's centre).
+  double PixelDirectionToAzimuthDeg(const Eigen::Vector2d& dir_px) const;
+  Eigen::Vector2d AzimuthDegToPixelDirection(double azimuth_deg) const;
 };
 
 // Transforms between one CRS and WGS84 geographic coordinates. Not thread-safe: use one per

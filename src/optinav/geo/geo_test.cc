@@ -57,6 +57,16 @@ TEST(GeoTransform, RotationTermsRoundTrip) {
   EXPECT_LT((g.CrsToPixel(xy) - px).norm(), 1e-7);
   EXPECT_FALSE(g.IsNorthUp());
   EXPECT_NEAR(g.UnitsPerPixel(), std::sqrt(0.25 + 0.008), 1e-12);
+  // Azimuths: for a north-up map, pixel up (-y) is north, +x is east.
+  GeoTransform up;
+  up.c = {0, 1, 0, 0, 0, -1};
+  EXPECT_NEAR(up.PixelDirectionToAzimuthDeg({0, -1}), 0.0, 1e-12);
+  EXPECT_NEAR(up.PixelDirectionToAzimuthDeg({1, 0}), 90.0, 1e-12);
+  EXPECT_NEAR(up.PixelDirectionToAzimuthDeg({-1, 0}), 270.0, 1e-12);
+  // With rotation terms the two directions are inverses of each other.
+  const Eigen::Vector2d dir = g.AzimuthDegToPixelDirection(35.0);
+  EXPECT_NEAR(g.PixelDirectionToAzimuthDeg(dir), 35.0, 1e-9);
+  EXPECT_NEAR(dir.norm(), 1.0, 1e-12);
   GeoTransform singular;
   singular.c = {0, 1, 1, 0, 1, 1};
   EXPECT_THROW(singular.CrsToPixel({1, 1}), Error);

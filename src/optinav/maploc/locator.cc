@@ -7,7 +7,6 @@
 #include <filesystem>
 #include <map>
 #include <mutex>
-#include <Eigen/LU>
 #include <opencv2/imgproc.hpp>
 #include <unordered_map>
 #include <unordered_set>
@@ -206,22 +205,11 @@ Eigen::Vector2d Locator::LatLonToPixel(const geo::LatLon& ll) const {
 }
 
 double Locator::PixelDirectionToHeading(const Eigen::Vector2d& d) const {
-  const auto& c = impl_->db.transform.c;
-  // Grid azimuth of the direction (meridian convergence is below 0.01 deg over a tile for
-  // the UTM-sized maps this is for; the geodesic answer would need two PROJ calls per frame).
-  const double east = c[1] * d.x() + c[2] * d.y();
-  const double north = c[4] * d.x() + c[5] * d.y();
-  double h = std::atan2(east, north) / kDeg;
-  if (h < 0) h += 360.0;
-  return h;
+  return impl_->db.transform.PixelDirectionToAzimuthDeg(d);
 }
 
 Eigen::Vector2d Locator::HeadingToPixelDirection(double heading_deg) const {
-  const auto& c = impl_->db.transform.c;
-  const Eigen::Vector2d en(std::sin(heading_deg * kDeg), std::cos(heading_deg * kDeg));
-  Eigen::Matrix2d a;
-  a << c[1], c[2], c[4], c[5];
-  return (a.inverse() * en).normalized();
+  return impl_->db.transform.AzimuthDegToPixelDirection(heading_deg);
 }
 
 LocateResult Locator::Locate(const cv::Mat& frame, const Prior& prior) {
@@ -250,10 +238,15 @@ LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior)
   LocateResult r;
   r.method = "features";
   Timer total, stage;
+  // Ends the attempt without a fix, saying why.
+  auto fail = [&](std::string reason) {
+    r.reason = std::move(reason);
+    r.times.total_ms = total.ElapsedSeconds() * 1e3;
+    return r;
+  };
   const cv::Mat gray = ToGray(frame);
   if (gray.empty()) {
-    r.reason = "empty frame";
-    return r;
+    return fail("empty frame");
   }
   // Bring the frame to the resolution the map's features were taken at.
   const double frame_gsd = im.FrameGsd(gray, prior);
@@ -268,10 +261,8 @@ LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior)
   const features::Features ff = im.extractor->Extract(work);
   r.times.extraction_ms = stage.ElapsedSeconds() * 1e3;
   if (ff.size() < 8) {
-    r.reason = fmt::format("too few features in the frame ({}): textureless, dark or blurred",
-                           ff.size());
-    r.times.total_ms = total.ElapsedSeconds() * 1e3;
-    return r;
+    return fail(fmt::format("too few features in the frame ({}): textureless, dark or blurred",
+                           ff.size()));
   }
   stage.Restart();
 
@@ -293,9 +284,7 @@ LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior)
       if (best < 1e300) by_distance.emplace_back(best, t.index);
     }
     if (by_distance.empty()) {
-      r.reason = "the prior lies outside the map";
-      r.times.total_ms = total.ElapsedSeconds() * 1e3;
-      return r;
+      return fail("the prior lies outside the map");
     }
     std::sort(by_distance.begin(), by_distance.end());
     for (size_t i = 0; i < by_distance.size() &&
@@ -308,8 +297,7 @@ LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior)
     // descriptors, then the best tiles and their neighbours are verified geometrically.
     std::call_once(im.index_once, [&] { im.BuildIndex(); });
     if (im.all_descriptors.empty()) {
-      r.reason = "the map has no features";
-      return r;
+      return fail("the map has no features");
     }
     const cv::Mat query = ff.descriptors.rowRange(0, std::min(ff.descriptors.rows, im.options.global_query_features));
     const auto votes_m = features::MatchWithRatio(query, im.all_descriptors, ff.norm, im.options.ratio);
@@ -335,10 +323,8 @@ LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior)
       }
     }
     if (candidates.empty()) {
-      r.reason = "no map tile shares features with the frame";
       r.times.matching_ms = stage.ElapsedSeconds() * 1e3;
-      r.times.total_ms = total.ElapsedSeconds() * 1e3;
-      return r;
+      return fail("no map tile shares features with the frame");
     }
   }
   r.candidate_tiles = candidates;
@@ -387,18 +373,14 @@ LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior)
   r.inliers = h.inliers;
   r.inlier_ratio = h.inlier_ratio;
   if (!h.ok) {
-    r.reason = h.reason;
-    r.times.total_ms = total.ElapsedSeconds() * 1e3;
-    return r;
+    return fail(h.reason);
   }
   const cv::Point2d c(gray.cols / 2.0, gray.rows / 2.0);
   const cv::Point2d mc = features::ApplyHomography(h.H, c);
   const cv::Point2d up = features::ApplyHomography(h.H, c + cv::Point2d(0, -gray.rows / 4.0));
   r.map_px = {mc.x, mc.y};
   if (mc.x < 0 || mc.y < 0 || mc.x > db.width || mc.y > db.height) {
-    r.reason = "the frame centre maps outside the map";
-    r.times.total_ms = total.ElapsedSeconds() * 1e3;
-    return r;
+    return fail("the frame centre maps outside the map");
   }
   const cv::Matx22d j = features::HomographyJacobian(h.H, c);
   r.scale = std::sqrt(std::abs(j(0, 0) * j(1, 1) - j(0, 1) * j(1, 0)));
@@ -421,25 +403,27 @@ LocateResult Locator::LocateByOrientationCorrelation(const cv::Mat& frame, const
   LocateResult r;
   r.method = "orientation-correlation";
   Timer total, stage;
+  // Ends the attempt without a fix, saying why.
+  auto fail = [&](std::string reason) {
+    r.reason = std::move(reason);
+    r.times.total_ms = total.ElapsedSeconds() * 1e3;
+    return r;
+  };
   const cv::Mat gray = ToGray(frame);
   if (gray.empty()) {
-    r.reason = "empty frame";
-    return r;
+    return fail("empty frame");
   }
   if (!prior.position) {
-    r.reason = "orientation correlation needs a prior position";
-    return r;
+    return fail("orientation correlation needs a prior position");
   }
   const geo::GeoRaster* ortho = im.Ortho();
   if (!ortho) {
-    r.reason = "orthophoto unavailable for orientation correlation: " + im.ortho_error;
-    return r;
+    return fail("orthophoto unavailable for orientation correlation: " + im.ortho_error);
   }
   const Eigen::Vector2d c_px = LatLonToPixel(*prior.position);
   if (c_px.x() < -db.width * 0.1 || c_px.y() < -db.height * 0.1 || c_px.x() > db.width * 1.1 ||
       c_px.y() > db.height * 1.1) {
-    r.reason = "the prior lies outside the map";
-    return r;
+    return fail("the prior lies outside the map");
   }
   const double frame_gsd = im.FrameGsd(gray, prior);
   const double frame_extent_m = std::max(gray.cols, gray.rows) * frame_gsd;
@@ -578,9 +562,7 @@ LocateResult Locator::LocateByOrientationCorrelation(const cv::Mat& frame, const
   }
   const OcPeak c = correlate(coarse, headings, c_px, prior.radius_m / db.map_gsd_m);
   if (c.score <= 0) {
-    r.reason = "no gradient structure to correlate (textureless frame or map)";
-    r.times.total_ms = total.ElapsedSeconds() * 1e3;
-    return r;
+    return fail("no gradient structure to correlate (textureless frame or map)");
   }
   // Refine at twice the resolution around the coarse peak and heading.
   const OcPeak f = correlate(fine, {c.heading},
@@ -594,16 +576,15 @@ LocateResult Locator::LocateByOrientationCorrelation(const cv::Mat& frame, const
   r.heading_deg = std::fmod(best.heading + 720.0, 360.0);
   r.scale = frame_gsd / db.map_gsd_m;
   r.altitude_m = prior.altitude_m.value_or(db.options.altitude_m);
-  r.times.total_ms = total.ElapsedSeconds() * 1e3;
   if (peak_ratio < im.options.oc_min_peak_ratio) {
-    r.reason = fmt::format("correlation peak not distinctive (ratio {:.2f} < {:.2f})", peak_ratio,
-                           im.options.oc_min_peak_ratio);
-    return r;
+    return fail(fmt::format("correlation peak not distinctive (ratio {:.2f} < {:.2f})", peak_ratio,
+                           im.options.oc_min_peak_ratio));
   }
   r.crs_xy = db.transform.PixelToCrs(r.map_px);
   r.latlon = im.crs.ToLatLon(r.crs_xy);
   r.localized = true;
   r.reason = "ok";
+  r.times.total_ms = total.ElapsedSeconds() * 1e3;
   return r;
 }
 
