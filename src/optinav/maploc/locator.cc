@@ -189,10 +189,16 @@ struct Locator::Impl {
   }
 };
 
-Locator::Locator(const MapDatabase& db, const LocateOptions& options)
-    : impl_(std::make_unique<Impl>(db, options)) {
+namespace {
+const LocateOptions& Validated(const LocateOptions& options) {
   if (const std::string msg = options.Check(); !msg.empty()) throw Error(msg);
+  return options;
 }
+}  // namespace
+
+// Options are validated before anything is built from them.
+Locator::Locator(const MapDatabase& db, const LocateOptions& options)
+    : impl_(std::make_unique<Impl>(db, Validated(options))) {}
 
 Locator::~Locator() = default;
 
