@@ -4,13 +4,13 @@
 //
 //   build/bench/eval_bench [--benchmark_filter=...]
 // The two input files are generated once into $TMPDIR (about 80 MB each).
-#include <benchmark/benchmark.h>
-
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <random>
 #include <sstream>
+
+#include <benchmark/benchmark.h>
 
 #include "optinav/eval/metrics.h"
 #include "optinav/io/text_parse.h"
@@ -79,7 +79,8 @@ BENCHMARK(BM_ApePipeline1M)->Unit(benchmark::kMillisecond)->Iterations(3);
 void BM_ParseTum1M(benchmark::State& state) {
   const Files& f = GetFiles();
   for (auto _ : state) {
-    const auto t = optinav::io::ReadTrajectory(f.ref, {.format = optinav::io::TrajectoryFormat::kTum});
+    const auto t =
+        optinav::io::ReadTrajectory(f.ref, {.format = optinav::io::TrajectoryFormat::kTum});
     benchmark::DoNotOptimize(t.positions.data());
   }
 }

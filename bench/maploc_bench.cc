@@ -5,13 +5,13 @@
 //    prior within 250 m, heading known within +-10 deg; target median < 20 ms.
 // Each benchmark iteration localizes a fixed, seeded set of frames and reports the median and
 // per-stage medians as counters (ms). Data: ../shared/data (or $OPTINAV_SHARED_DATA).
-#include <benchmark/benchmark.h>
-
 #include <algorithm>
 #include <cstdlib>
 #include <filesystem>
-#include <opencv2/imgproc.hpp>
 #include <random>
+
+#include <benchmark/benchmark.h>
+#include <opencv2/imgproc.hpp>
 
 #include "optinav/maploc/frame_synth.h"
 #include "optinav/maploc/locator.h"
@@ -65,7 +65,8 @@ const maploc::MapDatabase& PriorMap(std::string* tif_out) {
   static const maploc::MapDatabase db = [] {
     const geo::GeoRaster src =
         geo::GeoRaster::Open((SharedData() / "geo/naip/naip_20090818.tif").string());
-    const cv::Mat gray = src.ReadGray(0, 0, src.width(), src.height(), 2 * src.width(), 2 * src.height());
+    const cv::Mat gray =
+        src.ReadGray(0, 0, src.width(), src.height(), 2 * src.width(), 2 * src.height());
     geo::GeoTransform gt = src.transform();
     gt.c[1] /= 2;
     gt.c[5] /= 2;
@@ -146,7 +147,8 @@ void BM_OrientationCorrelation(benchmark::State& state) {
     s.width = s.height = 256;
     s.gsd_m = 5;
     s.heading_deg = 360 * u01(rng);
-    s.centre_px = {182 + (flight.width() - 364) * u01(rng), 182 + (flight.height() - 364) * u01(rng)};
+    s.centre_px = {182 + (flight.width() - 364) * u01(rng),
+                   182 + (flight.height() - 364) * u01(rng)};
     frames.push_back(maploc::SynthesizeFrame(flight, 5.0, s));
     const Eigen::Vector2d t = flight.transform().PixelToCrs(s.centre_px);
     truth.push_back(t);

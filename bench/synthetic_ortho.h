@@ -3,9 +3,10 @@
 // written as a tiled GeoTIFF in UTM 14N.
 #pragma once
 
-#include <opencv2/imgproc.hpp>
 #include <random>
 #include <string>
+
+#include <opencv2/imgproc.hpp>
 
 #include "optinav/geo/raster.h"
 

@@ -9,14 +9,14 @@
 //    SVD; both give the least-squares optimum);
 //  - RPE pairs with evo's path rule written as a plain loop.
 // Library and naive results must agree to 1e-6 relative.
-#include <gtest/gtest.h>
-
-#include <Eigen/Dense>
 #include <cmath>
 #include <fstream>
 #include <sstream>
 #include <string>
 #include <vector>
+
+#include <Eigen/Dense>
+#include <gtest/gtest.h>
 
 #include "optinav/eval/metrics.h"
 #include "optinav/io/trajectory_io.h"
@@ -274,7 +274,8 @@ SyncedPair LibraryPrepare(const Case& c, AlignMode mode) {
 
 NaiveTraj NaiveRead(const std::string& name) {
   if (name.find("KITTI") != std::string::npos) return NaiveReadKitti(Data(name));
-  if (name.size() > 4 && name.substr(name.size() - 4) == ".csv") return NaiveReadEurocCsv(Data(name));
+  if (name.size() > 4 && name.substr(name.size() - 4) == ".csv")
+    return NaiveReadEurocCsv(Data(name));
   return NaiveReadTum(Data(name));
 }
 
@@ -282,7 +283,8 @@ void NaivePrepare(const Case& c, AlignMode mode, NaiveTraj* ref, NaiveTraj* est)
   *ref = NaiveRead(c.ref);
   *est = NaiveRead(c.est);
   if (!ref->t.empty()) NaiveAssociate(ref, est, 0.01);
-  if (mode != AlignMode::kNone) NaiveApply(NaiveHornAlign(*ref, *est, mode == AlignMode::kSim3), est);
+  if (mode != AlignMode::kNone)
+    NaiveApply(NaiveHornAlign(*ref, *est, mode == AlignMode::kSim3), est);
 }
 
 TEST(EvoReference, ApeTranslationOnEvoTestData) {
@@ -311,8 +313,7 @@ TEST(EvoReference, RpeTranslationDelta10MetresOnKitti) {
     const SyncedPair p = LibraryPrepare(c, c.mode);
     NaiveTraj ref, est;
     NaivePrepare(c, c.mode, &ref, &est);
-    const ErrorSeries lib =
-        ComputeRpe(p.ref, p.est, {.delta = 10, .unit = DeltaUnit::kMeters});
+    const ErrorSeries lib = ComputeRpe(p.ref, p.est, {.delta = 10, .unit = DeltaUnit::kMeters});
     ExpectSameStats(lib.stats, NaiveStatistics(NaiveRpeTransMeters(ref, est, 10.0)),
                     std::string(est_name) + " RPE 10 m");
   }

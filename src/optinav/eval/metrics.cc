@@ -1,10 +1,10 @@
 #include "optinav/eval/metrics.h"
 
-#include <fmt/format.h>
-
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+
+#include <fmt/format.h>
 
 #include "optinav/geometry/alignment.h"
 #include "optinav/io/text_parse.h"
@@ -71,9 +71,10 @@ SyncedPair Synchronize(Trajectory ref, Trajectory est, const AssociationOptions&
   out.max_pairs = std::min(ref.size(), est.size());
   if (!ref.has_timestamps() || !est.has_timestamps()) {
     if (ref.size() != est.size()) {
-      throw Error(fmt::format("trajectories without timestamps are matched by index and need the "
-                              "same number of poses (reference {}, estimate {})",
-                              ref.size(), est.size()));
+      throw Error(
+          fmt::format("trajectories without timestamps are matched by index and need the "
+                      "same number of poses (reference {}, estimate {})",
+                      ref.size(), est.size()));
     }
     out.by_index = true;
     out.ref_indices.resize(ref.size());
@@ -135,12 +136,12 @@ SyncedPair Synchronize(Trajectory ref, Trajectory est, const AssociationOptions&
     }
   }
   if (idx_short.empty()) {
-    throw Error(fmt::format("found no matching timestamps between reference and estimate with "
-                            "max. time diff {} s and time offset {} s (reference {}..{} s, "
-                            "estimate {}..{} s)",
-                            options.max_diff_s, options.t_offset_s, ref.t_ns.front() * 1e-9,
-                            ref.t_ns.back() * 1e-9, est.t_ns.front() * 1e-9,
-                            est.t_ns.back() * 1e-9));
+    throw Error(
+        fmt::format("found no matching timestamps between reference and estimate with "
+                    "max. time diff {} s and time offset {} s (reference {}..{} s, "
+                    "estimate {}..{} s)",
+                    options.max_diff_s, options.t_offset_s, ref.t_ns.front() * 1e-9,
+                    ref.t_ns.back() * 1e-9, est.t_ns.front() * 1e-9, est.t_ns.back() * 1e-9));
   }
   out.ref_indices = est_longer ? idx_short : idx_long;
   out.est_indices = est_longer ? idx_long : idx_short;
@@ -162,11 +163,16 @@ std::optional<AlignMode> ParseAlignMode(const std::string& name) {
 
 std::string AlignModeName(AlignMode mode) {
   switch (mode) {
-    case AlignMode::kNone: return "none";
-    case AlignMode::kSe3: return "se3";
-    case AlignMode::kSim3: return "sim3";
-    case AlignMode::kScale: return "scale";
-    case AlignMode::kPosYaw: return "posyaw";
+    case AlignMode::kNone:
+      return "none";
+    case AlignMode::kSe3:
+      return "se3";
+    case AlignMode::kSim3:
+      return "sim3";
+    case AlignMode::kScale:
+      return "scale";
+    case AlignMode::kPosYaw:
+      return "posyaw";
   }
   return "?";
 }
@@ -184,15 +190,22 @@ AlignmentResult AlignTrajectory(const Trajectory& ref, Trajectory* est,
   result.options = options;
   const size_t n = options.n_to_align;
   switch (options.mode) {
-    case AlignMode::kNone: break;
-    case AlignMode::kSe3: result.ref_from_est = UmeyamaAlignment(est->positions, ref.positions, false, n); break;
-    case AlignMode::kSim3: result.ref_from_est = UmeyamaAlignment(est->positions, ref.positions, true, n); break;
+    case AlignMode::kNone:
+      break;
+    case AlignMode::kSe3:
+      result.ref_from_est = UmeyamaAlignment(est->positions, ref.positions, false, n);
+      break;
+    case AlignMode::kSim3:
+      result.ref_from_est = UmeyamaAlignment(est->positions, ref.positions, true, n);
+      break;
     case AlignMode::kScale:
       // evo's --correct_scale without --align: only the Umeyama scale is applied.
       result.ref_from_est = Sim3d{};
       result.ref_from_est.scale = UmeyamaAlignment(est->positions, ref.positions, true, n).scale;
       break;
-    case AlignMode::kPosYaw: result.ref_from_est = PositionYawAlignment(est->positions, ref.positions, n); break;
+    case AlignMode::kPosYaw:
+      result.ref_from_est = PositionYawAlignment(est->positions, ref.positions, n);
+      break;
   }
   if (options.mode != AlignMode::kNone) est->Transform(result.ref_from_est);
   if (options.align_origin) {
@@ -215,32 +228,46 @@ std::optional<PoseRelation> ParsePoseRelation(const std::string& name) {
 
 std::string PoseRelationName(PoseRelation r) {
   switch (r) {
-    case PoseRelation::kTranslation: return "trans";
-    case PoseRelation::kRotation: return "rot";
-    case PoseRelation::kFull: return "full";
-    case PoseRelation::kAngleRad: return "angle_rad";
-    case PoseRelation::kAngleDeg: return "angle_deg";
+    case PoseRelation::kTranslation:
+      return "trans";
+    case PoseRelation::kRotation:
+      return "rot";
+    case PoseRelation::kFull:
+      return "full";
+    case PoseRelation::kAngleRad:
+      return "angle_rad";
+    case PoseRelation::kAngleDeg:
+      return "angle_deg";
   }
   return "?";
 }
 
 std::string PoseRelationTitle(PoseRelation r) {
   switch (r) {
-    case PoseRelation::kTranslation: return "translation part";
-    case PoseRelation::kRotation: return "rotation part";
-    case PoseRelation::kFull: return "full transformation";
-    case PoseRelation::kAngleRad: return "rotation angle in radians";
-    case PoseRelation::kAngleDeg: return "rotation angle in degrees";
+    case PoseRelation::kTranslation:
+      return "translation part";
+    case PoseRelation::kRotation:
+      return "rotation part";
+    case PoseRelation::kFull:
+      return "full transformation";
+    case PoseRelation::kAngleRad:
+      return "rotation angle in radians";
+    case PoseRelation::kAngleDeg:
+      return "rotation angle in degrees";
   }
   return "?";
 }
 
 std::string PoseRelationUnit(PoseRelation r) {
   switch (r) {
-    case PoseRelation::kTranslation: return "m";
-    case PoseRelation::kAngleRad: return "rad";
-    case PoseRelation::kAngleDeg: return "deg";
-    default: return "";
+    case PoseRelation::kTranslation:
+      return "m";
+    case PoseRelation::kAngleRad:
+      return "rad";
+    case PoseRelation::kAngleDeg:
+      return "deg";
+    default:
+      return "";
   }
 }
 
@@ -302,11 +329,16 @@ std::optional<DeltaUnit> ParseDeltaUnit(const std::string& name) {
 
 std::string DeltaUnitName(DeltaUnit u) {
   switch (u) {
-    case DeltaUnit::kFrames: return "frames";
-    case DeltaUnit::kMeters: return "m";
-    case DeltaUnit::kSeconds: return "s";
-    case DeltaUnit::kRadians: return "rad";
-    case DeltaUnit::kDegrees: return "deg";
+    case DeltaUnit::kFrames:
+      return "frames";
+    case DeltaUnit::kMeters:
+      return "m";
+    case DeltaUnit::kSeconds:
+      return "s";
+    case DeltaUnit::kRadians:
+      return "rad";
+    case DeltaUnit::kDegrees:
+      return "deg";
   }
   return "?";
 }
@@ -324,8 +356,7 @@ std::string RpeOptions::Check() const {
   return "";
 }
 
-std::vector<std::pair<size_t, size_t>> SelectRpePairs(const Trajectory& est,
-                                                      const RpeOptions& o) {
+std::vector<std::pair<size_t, size_t>> SelectRpePairs(const Trajectory& est, const RpeOptions& o) {
   std::vector<std::pair<size_t, size_t>> pairs;
   const size_t n = est.size();
   if (n < 2) return pairs;
@@ -409,8 +440,8 @@ std::vector<std::pair<size_t, size_t>> SelectRpePairs(const Trajectory& est,
         const int64_t tol = SecondsToNs(o.delta * o.rel_delta_tol);
         for (size_t i = 0; i + 1 < n; ++i) {
           const int64_t target = t[i] + delta;
-          const size_t k = static_cast<size_t>(
-              std::lower_bound(t.begin() + i + 1, t.end(), target) - t.begin());
+          const size_t k =
+              static_cast<size_t>(std::lower_bound(t.begin() + i + 1, t.end(), target) - t.begin());
           size_t best = std::min(k, n - 1);
           if (k > i + 1 && (k == n || target - t[k - 1] <= t[k] - target)) {
             best = FirstOfRun(t, i + 1, k - 1);
@@ -437,10 +468,11 @@ ErrorSeries ComputeRpe(const Trajectory& ref, const Trajectory& est, const RpeOp
   if (ref.size() != est.size()) throw Error("RPE needs synchronized trajectories of equal size");
   const auto pairs = SelectRpePairs(est, options);
   if (pairs.empty()) {
-    throw Error(fmt::format("delta = {} ({}) produced no pose pairs among {} poses: try a smaller "
-                            "delta{}",
-                            options.delta, DeltaUnitName(options.unit), est.size(),
-                            options.all_pairs ? " or a larger --rel-delta-tol" : ""));
+    throw Error(
+        fmt::format("delta = {} ({}) produced no pose pairs among {} poses: try a smaller "
+                    "delta{}",
+                    options.delta, DeltaUnitName(options.unit), est.size(),
+                    options.all_pairs ? " or a larger --rel-delta-tol" : ""));
   }
   ErrorSeries out;
   out.errors.reserve(pairs.size());

@@ -96,8 +96,8 @@ struct RpeOptions {
   double delta = 1.0;
   DeltaUnit unit = DeltaUnit::kFrames;
   PoseRelation relation = PoseRelation::kTranslation;
-  bool all_pairs = false;       // all pairs at distance delta, not consecutive non-overlapping
-  double rel_delta_tol = 0.1;   // all_pairs with m, s, rad, deg: accept |d - delta| <= tol*delta
+  bool all_pairs = false;      // all pairs at distance delta, not consecutive non-overlapping
+  double rel_delta_tol = 0.1;  // all_pairs with m, s, rad, deg: accept |d - delta| <= tol*delta
   // Returns an empty string when valid, else a message naming the offending option.
   std::string Check() const;
 };

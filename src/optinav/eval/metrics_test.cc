@@ -1,9 +1,9 @@
 // Hand-checked small cases for association, alignment, APE, RPE and statistics.
 #include "optinav/eval/metrics.h"
 
-#include <gtest/gtest.h>
-
 #include <cmath>
+
+#include <gtest/gtest.h>
 
 namespace optinav::eval {
 namespace {
@@ -75,9 +75,9 @@ Trajectory Square(double offset_y, double yaw) {
   const Eigen::Vector3d corners[] = {{0, 0, 0}, {1, 0, 0.5}, {1, 1, 0}, {0, 1, 0.2}, {0.5, 0.5, 1}};
   int64_t stamp = 0;
   for (const auto& c : corners) {
-    t.Add(stamp += kSec, Rigid3d(ExpSO3(Eigen::Vector3d(0, 0, yaw)),
-                                 ExpSO3(Eigen::Vector3d(0, 0, yaw)) * c +
-                                     Eigen::Vector3d(0, offset_y, 0)));
+    t.Add(stamp += kSec,
+          Rigid3d(ExpSO3(Eigen::Vector3d(0, 0, yaw)),
+                  ExpSO3(Eigen::Vector3d(0, 0, yaw)) * c + Eigen::Vector3d(0, offset_y, 0)));
   }
   return t;
 }
@@ -135,8 +135,8 @@ TEST(Alignment, Sim3ScaleOnlyPosYawAndOrigin) {
 Trajectory LineTraj(int n, double step) {
   Trajectory t;
   for (int i = 0; i < n; ++i) {
-    t.Add(int64_t{i} * kSec / 10, Rigid3d(Eigen::Quaterniond::Identity(),
-                                          Eigen::Vector3d(i * step, 0, 0)));
+    t.Add(int64_t{i} * kSec / 10,
+          Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(i * step, 0, 0)));
   }
   return t;
 }
@@ -144,7 +144,8 @@ Trajectory LineTraj(int n, double step) {
 TEST(Rpe, FramesConsecutiveAndAllPairs) {
   const Trajectory ref = LineTraj(7, 1.0), est = LineTraj(7, 1.1);
   RpeOptions o{.delta = 2, .unit = DeltaUnit::kFrames};
-  EXPECT_EQ(SelectRpePairs(est, o), (std::vector<std::pair<size_t, size_t>>{{0, 2}, {2, 4}, {4, 6}}));
+  EXPECT_EQ(SelectRpePairs(est, o),
+            (std::vector<std::pair<size_t, size_t>>{{0, 2}, {2, 4}, {4, 6}}));
   const ErrorSeries e = ComputeRpe(ref, est, o);
   EXPECT_NEAR(e.stats.mean, 0.2, 1e-12);
   EXPECT_EQ(e.indices, (std::vector<size_t>{2, 4, 6}));

@@ -2,13 +2,13 @@
 // drone flight and a drifting odometry estimate of it (yaw drift, scale error, velocity random
 // walk, its own start frame, a lower and jittered rate), writes both in their usual formats and
 // evaluates the estimate as a user would with `optinav eval`.
-#include <fmt/format.h>
-
-#include <CLI/CLI.hpp>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <random>
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
 
 #include "optinav/exe/commands.h"
 #include "optinav/exe/evaluation.h"
@@ -101,9 +101,10 @@ int RunDemo(int argc, char** argv) {
     const std::string est_path = (fs::path(opt.out_dir) / "estimate.tum").string();
     io::WriteTrajectory(gt_path, gt, io::TrajectoryFormat::kEuroc);
     io::WriteTrajectory(est_path, est, io::TrajectoryFormat::kTum);
-    std::printf("optinav demo: %.0f s figure-eight flight, %.0f m path; estimate with yaw drift, "
-                "1%% scale error and velocity random walk (seed %u)\n",
-                opt.duration_s, gt.PathLength(), opt.seed);
+    std::printf(
+        "optinav demo: %.0f s figure-eight flight, %.0f m path; estimate with yaw drift, "
+        "1%% scale error and velocity random walk (seed %u)\n",
+        opt.duration_s, gt.PathLength(), opt.seed);
     std::printf("  wrote %s (EuRoC csv, %zu poses) and %s (TUM, %zu poses)\n\n", gt_path.c_str(),
                 gt.size(), est_path.c_str(), est.size());
 
@@ -113,11 +114,10 @@ int RunDemo(int argc, char** argv) {
       eval::AlignMode align;
     };
     double ape_se3_rmse = 0;
-    for (const Job& job : {Job{"ape_se3", EvaluationSettings::Metric::kApe, eval::AlignMode::kSe3},
-                           Job{"ape_posyaw", EvaluationSettings::Metric::kApe,
-                               eval::AlignMode::kPosYaw},
-                           Job{"rpe_10m", EvaluationSettings::Metric::kRpe,
-                               eval::AlignMode::kSe3}}) {
+    for (const Job& job :
+         {Job{"ape_se3", EvaluationSettings::Metric::kApe, eval::AlignMode::kSe3},
+          Job{"ape_posyaw", EvaluationSettings::Metric::kApe, eval::AlignMode::kPosYaw},
+          Job{"rpe_10m", EvaluationSettings::Metric::kRpe, eval::AlignMode::kSe3}}) {
       EvaluationSettings st;
       st.metric = job.metric;
       st.ref_path = gt_path;

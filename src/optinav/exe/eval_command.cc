@@ -1,6 +1,7 @@
 // optinav eval ape|rpe REF EST [options]: trajectory evaluation with evo's definitions.
-#include <CLI/CLI.hpp>
 #include <cstdio>
+
+#include <CLI/CLI.hpp>
 
 #include "optinav/exe/commands.h"
 #include "optinav/exe/evaluation.h"
@@ -17,14 +18,11 @@ struct RawOptions {
 void AddCommonOptions(CLI::App* cmd, EvaluationSettings* st, RawOptions* raw) {
   cmd->add_option("ref", st->ref_path, "reference (ground-truth) trajectory file")->required();
   cmd->add_option("est", st->est_path, "estimated trajectory file")->required();
-  cmd->add_option("--ref-format", raw->ref_format, "auto|tum|kitti|euroc")
-      ->capture_default_str();
-  cmd->add_option("--est-format", raw->est_format, "auto|tum|kitti|euroc")
-      ->capture_default_str();
+  cmd->add_option("--ref-format", raw->ref_format, "auto|tum|kitti|euroc")->capture_default_str();
+  cmd->add_option("--est-format", raw->est_format, "auto|tum|kitti|euroc")->capture_default_str();
   cmd->add_option("--ref-times", st->ref_read.kitti_times_path,
                   "times file (seconds, one per line) for a KITTI reference");
-  cmd->add_option("--est-times", st->est_read.kitti_times_path,
-                  "times file for a KITTI estimate");
+  cmd->add_option("--est-times", st->est_read.kitti_times_path, "times file for a KITTI estimate");
   cmd->add_option("--max-diff", st->association.max_diff_s,
                   "max. time difference (s) for associating stamps")
       ->capture_default_str();

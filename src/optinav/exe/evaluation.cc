@@ -12,11 +12,21 @@ std::string AlignmentDescription(const eval::AlignmentResult& a, size_t pairs) {
   const auto& o = a.options;
   std::string s;
   switch (o.mode) {
-    case eval::AlignMode::kNone: s = "none"; break;
-    case eval::AlignMode::kSe3: s = "SE(3) Umeyama"; break;
-    case eval::AlignMode::kSim3: s = "Sim(3) Umeyama"; break;
-    case eval::AlignMode::kScale: s = "scale only (Umeyama)"; break;
-    case eval::AlignMode::kPosYaw: s = "4-DoF position + yaw"; break;
+    case eval::AlignMode::kNone:
+      s = "none";
+      break;
+    case eval::AlignMode::kSe3:
+      s = "SE(3) Umeyama";
+      break;
+    case eval::AlignMode::kSim3:
+      s = "Sim(3) Umeyama";
+      break;
+    case eval::AlignMode::kScale:
+      s = "scale only (Umeyama)";
+      break;
+    case eval::AlignMode::kPosYaw:
+      s = "4-DoF position + yaw";
+      break;
   }
   if (o.mode != eval::AlignMode::kNone) {
     s += o.n_to_align > 0 ? fmt::format(" on the first {} pairs", std::min(o.n_to_align, pairs))
@@ -67,7 +77,8 @@ EvaluationOutcome RunEvaluation(const EvaluationSettings& st) {
   j["sse"] = s.sse;
   const Eigen::Matrix4d total = out.alignment.Total();
   nlohmann::json matrix = nlohmann::json::array();
-  for (int r = 0; r < 4; ++r) matrix.push_back({total(r, 0), total(r, 1), total(r, 2), total(r, 3)});
+  for (int r = 0; r < 4; ++r)
+    matrix.push_back({total(r, 0), total(r, 1), total(r, 2), total(r, 3)});
   j["alignment"] = {{"mode", eval::AlignModeName(st.alignment.mode)},
                     {"n_to_align", st.alignment.n_to_align},
                     {"align_origin", st.alignment.align_origin},
@@ -115,20 +126,23 @@ std::string FormatEvaluationTable(const EvaluationSettings& st, const Evaluation
   t += o.title + "\n";
   t += fmt::format("  reference : {} ({} poses)\n", st.ref_path, o.ref_poses);
   t += fmt::format("  estimate  : {} ({} poses)\n", st.est_path, o.est_poses);
-  t += fmt::format("  matched   : {} of {} possible pairs{}\n", o.synced.ref.size(),
-                   o.synced.max_pairs,
-                   o.synced.by_index
-                       ? " (by index: no timestamps)"
-                       : fmt::format(" (max diff {} s, t offset {} s)", st.association.max_diff_s,
-                                     st.association.t_offset_s));
+  t += fmt::format(
+      "  matched   : {} of {} possible pairs{}\n", o.synced.ref.size(), o.synced.max_pairs,
+      o.synced.by_index ? " (by index: no timestamps)"
+                        : fmt::format(" (max diff {} s, t offset {} s)", st.association.max_diff_s,
+                                      st.association.t_offset_s));
   t += fmt::format("  alignment : {}", AlignmentDescription(o.alignment, o.synced.ref.size()));
   if (st.alignment.mode == eval::AlignMode::kSim3 || st.alignment.mode == eval::AlignMode::kScale) {
     t += fmt::format(" (scale {:.6f})", o.alignment.ref_from_est.scale);
   }
   t += "\n\n";
-  for (const auto& [name, value] :
-       {std::pair{"max", s.max}, {"mean", s.mean}, {"median", s.median}, {"min", s.min},
-        {"rmse", s.rmse}, {"sse", s.sse}, {"std", s.std}}) {
+  for (const auto& [name, value] : {std::pair{"max", s.max},
+                                    {"mean", s.mean},
+                                    {"median", s.median},
+                                    {"min", s.min},
+                                    {"rmse", s.rmse},
+                                    {"sse", s.sse},
+                                    {"std", s.std}}) {
     t += fmt::format("{:>10}  {:.6f}\n", name, value);
   }
   t += fmt::format("{:>10}  {}\n", "n", s.n);

@@ -2,8 +2,9 @@
 // compute APE or RPE, print a table, optionally write JSON and an SVG plot.
 #pragma once
 
-#include <nlohmann/json.hpp>
 #include <string>
+
+#include <nlohmann/json.hpp>
 
 #include "optinav/eval/metrics.h"
 #include "optinav/io/trajectory_io.h"
@@ -24,11 +25,11 @@ struct EvaluationSettings {
 
 struct EvaluationOutcome {
   size_t ref_poses = 0, est_poses = 0;  // as read
-  eval::SyncedPair synced;  // est aligned in place
+  eval::SyncedPair synced;              // est aligned in place
   eval::AlignmentResult alignment;
   eval::ErrorSeries series;
-  std::string title;     // "APE w.r.t. translation part (m)"
-  nlohmann::json json;   // the document written with --json
+  std::string title;    // "APE w.r.t. translation part (m)"
+  nlohmann::json json;  // the document written with --json
 };
 
 // Runs the job; throws optinav::Error on bad input. Writes the optional outputs atomically.

@@ -1,9 +1,9 @@
 // optinav map build | info | locate: orthophoto feature databases and frame-to-map fixes.
-#include <fmt/format.h>
-
-#include <CLI/CLI.hpp>
 #include <cstdio>
 #include <fstream>
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
@@ -125,11 +125,18 @@ int RunInfo(const std::string& path, bool json) {
                         {"extent_m", {db.width * db.map_gsd_m, db.height * db.map_gsd_m}},
                         {"upper_left", {ul.lat_deg, ul.lon_deg}},
                         {"lower_right", {lr.lat_deg, lr.lon_deg}},
-                        {"tiles", {{"cols", db.cols}, {"rows", db.rows}, {"count", db.tiles.size()},
-                                   {"padded", padded}, {"side_px", db.tile_px}, {"step_px", db.step_px}}},
-                        {"features", {{"type", features::FeatureTypeName(db.feature_type)},
-                                      {"total", db.FeatureCount()}, {"min_per_tile", min_f},
-                                      {"max_per_tile", max_f}}},
+                        {"tiles",
+                         {{"cols", db.cols},
+                          {"rows", db.rows},
+                          {"count", db.tiles.size()},
+                          {"padded", padded},
+                          {"side_px", db.tile_px},
+                          {"step_px", db.step_px}}},
+                        {"features",
+                         {{"type", features::FeatureTypeName(db.feature_type)},
+                          {"total", db.FeatureCount()},
+                          {"min_per_tile", min_f},
+                          {"max_per_tile", max_f}}},
                         {"feature_gsd_m", db.feature_gsd_m}};
     std::printf("%s\n", j.dump(2).c_str());
     return 0;
@@ -189,7 +196,8 @@ int RunLocate(const LocateArgs& a) {
     // The document's prediction: from the last fix along the bearing (to the target) and
     // deviated bearings, as far as the drone can have flown.
     const geo::LatLon fix = ParseLatLon(a.last_fix, "--last-fix");
-    if (!(a.max_travel_m > 0)) throw Error("needs a positive --max-travel", {.field = "--last-fix"});
+    if (!(a.max_travel_m > 0))
+      throw Error("needs a positive --max-travel", {.field = "--last-fix"});
     std::vector<double> devs = {0.0};
     std::vector<std::string_view> f;
     io::SplitFields(a.deviations, ',', &f);
@@ -228,9 +236,10 @@ int RunLocate(const LocateArgs& a) {
     if (header) {
       header = false;
       if (f.empty() || f[0] != "image") {
-        throw Error("expected the header 'image,prior_lat,prior_lon,radius_m,heading_deg,"
-                    "heading_sigma_deg'",
-                    {.file = a.list, .line = cursor.line_number()});
+        throw Error(
+            "expected the header 'image,prior_lat,prior_lon,radius_m,heading_deg,"
+            "heading_sigma_deg'",
+            {.file = a.list, .line = cursor.line_number()});
       }
       continue;
     }
@@ -246,7 +255,8 @@ int RunLocate(const LocateArgs& a) {
         return io::ParseFiniteDouble(f[k], c);
       };
       const auto lat = number(1, "prior_lat"), lon = number(2, "prior_lon");
-      if (lat.has_value() != lon.has_value()) throw Error("give both prior_lat and prior_lon or neither", ctx);
+      if (lat.has_value() != lon.has_value())
+        throw Error("give both prior_lat and prior_lon or neither", ctx);
       if (lat) p.position = geo::LatLon{*lat, *lon};
       if (auto r = number(3, "radius_m")) p.radius_m = *r;
       if (auto h = number(4, "heading_deg")) p.heading_deg = *h;
@@ -275,7 +285,8 @@ int RunRender(const RenderArgs& a) {
   maploc::FrameSpec s;
   if (std::sscanf(a.frame_size.c_str(), "%dx%d", &s.width, &s.height) != 2 || s.width < 16 ||
       s.height < 16) {
-    throw Error("expected WxH, e.g. 640x480, got '" + a.frame_size + "'", {.field = "--frame-size"});
+    throw Error("expected WxH, e.g. 640x480, got '" + a.frame_size + "'",
+                {.field = "--frame-size"});
   }
   const geo::LatLon at = ParseLatLon(a.at, "--at");
   s.centre_px = raster.transform().CrsToPixel(crs.FromLatLon(at));
@@ -311,11 +322,14 @@ int RunMap(int argc, char** argv) {
   build->add_option("--altitude", bo.altitude_m, "flight altitude above ground (m)")->required();
   build->add_option("--hfov", bo.hfov_deg, "camera horizontal field of view (deg)")->required();
   build->add_option("--frame-size", frame_size, "camera frame size WxH (px)")->required();
-  build->add_option("--scale-factor", bo.scale_factor, "tile side / frame footprint")->capture_default_str();
-  build->add_option("--overlap", bo.overlap, "fraction shared by neighbouring tiles")->capture_default_str();
+  build->add_option("--scale-factor", bo.scale_factor, "tile side / frame footprint")
+      ->capture_default_str();
+  build->add_option("--overlap", bo.overlap, "fraction shared by neighbouring tiles")
+      ->capture_default_str();
   build->add_option("--features", feature_name, "orb|sift|brisk")->capture_default_str();
   build->add_option("--max-features", bo.max_features, "features per tile")->capture_default_str();
-  build->add_option("--threads", bo.threads, "worker threads (0: all cores)")->capture_default_str();
+  build->add_option("--threads", bo.threads, "worker threads (0: all cores)")
+      ->capture_default_str();
   build->add_option("--out", out, "output database (SQLite)")->required();
 
   CLI::App* info = app.add_subcommand("info", "print a database's extent, CRS, tiles, features");
@@ -335,9 +349,12 @@ int RunMap(int argc, char** argv) {
   locate->add_option("--last-fix", la.last_fix, "prediction: last fix LAT,LON");
   locate->add_option("--max-travel", la.max_travel_m, "prediction: distance flown since (m)");
   locate->add_option("--bearing", la.bearing_deg, "prediction: bearing to the target (deg)");
-  locate->add_option("--deviations", la.deviations, "prediction: deviated bearings (deg)")->capture_default_str();
-  locate->add_option("--heading", la.heading, "frame heading, deg clockwise from north of frame up");
-  locate->add_option("--heading-sigma", la.heading_sigma, "heading uncertainty (deg)")->capture_default_str();
+  locate->add_option("--deviations", la.deviations, "prediction: deviated bearings (deg)")
+      ->capture_default_str();
+  locate->add_option("--heading", la.heading,
+                     "frame heading, deg clockwise from north of frame up");
+  locate->add_option("--heading-sigma", la.heading_sigma, "heading uncertainty (deg)")
+      ->capture_default_str();
   locate->add_option("--altitude", la.altitude, "approximate altitude above ground (m)");
   locate->add_option("--ortho", la.ortho, "orthophoto path if moved since the build (for oc)");
   locate->add_option("--method", la.method, "auto|features|oc")->capture_default_str();
@@ -362,10 +379,13 @@ int RunMap(int argc, char** argv) {
     if (render->parsed()) return RunRender(ra);
     if (build->parsed()) {
       const auto ft = features::ParseFeatureType(feature_name);
-      if (!ft) throw Error("unknown feature type '" + feature_name + "' (orb|sift|brisk)", {.field = "--features"});
+      if (!ft)
+        throw Error("unknown feature type '" + feature_name + "' (orb|sift|brisk)",
+                    {.field = "--features"});
       bo.feature_type = *ft;
       if (std::sscanf(frame_size.c_str(), "%dx%d", &bo.frame_width, &bo.frame_height) != 2) {
-        throw Error("expected WxH, e.g. 640x480, got '" + frame_size + "'", {.field = "--frame-size"});
+        throw Error("expected WxH, e.g. 640x480, got '" + frame_size + "'",
+                    {.field = "--frame-size"});
       }
       if (const std::string msg = bo.Check(); !msg.empty()) {
         spdlog::error("{}", msg);

@@ -24,7 +24,8 @@ constexpr Command kCommands[] = {
 void PrintUsage(std::FILE* out) {
   std::fprintf(out, "optinav %s: navigation when GNSS is jammed, spoofed or lost\n\n",
                OPTINAV_VERSION);
-  std::fprintf(out, "usage: optinav <command> [options]   (optinav <command> --help)\n\ncommands:\n");
+  std::fprintf(out,
+               "usage: optinav <command> [options]   (optinav <command> --help)\n\ncommands:\n");
   for (const Command& c : kCommands) std::fprintf(out, "  %-10s %s\n", c.name, c.help);
   std::fprintf(out, "  %-10s %s\n", "version", "print the version");
 }

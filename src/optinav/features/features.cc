@@ -1,6 +1,7 @@
 #include "optinav/features/features.h"
 
 #include <cmath>
+
 #include <opencv2/calib3d.hpp>
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
@@ -11,8 +12,8 @@ namespace {
 class OrbExtractor : public FeatureExtractor {
  public:
   explicit OrbExtractor(const ExtractorOptions& o)
-      : orb_(cv::ORB::create(o.max_features, 1.2f, o.orb_levels, 31, 0, 2, cv::ORB::HARRIS_SCORE, 31,
-                             o.orb_fast_threshold)) {}
+      : orb_(cv::ORB::create(o.max_features, 1.2f, o.orb_levels, 31, 0, 2, cv::ORB::HARRIS_SCORE,
+                             31, o.orb_fast_threshold)) {}
   Features Extract(const cv::Mat& gray, const cv::Mat& mask) const override {
     Features f;
     f.norm = cv::NORM_HAMMING;
@@ -30,7 +31,8 @@ class OrbExtractor : public FeatureExtractor {
 
 class BriskExtractor : public FeatureExtractor {
  public:
-  explicit BriskExtractor(const ExtractorOptions& o) : brisk_(cv::BRISK::create()), max_(o.max_features) {}
+  explicit BriskExtractor(const ExtractorOptions& o)
+      : brisk_(cv::BRISK::create()), max_(o.max_features) {}
   Features Extract(const cv::Mat& gray, const cv::Mat& mask) const override {
     Features f;
     f.norm = cv::NORM_HAMMING;
@@ -78,9 +80,12 @@ std::optional<FeatureType> ParseFeatureType(const std::string& name) {
 
 std::string FeatureTypeName(FeatureType type) {
   switch (type) {
-    case FeatureType::kOrb: return "orb";
-    case FeatureType::kSift: return "sift";
-    case FeatureType::kBrisk: return "brisk";
+    case FeatureType::kOrb:
+      return "orb";
+    case FeatureType::kSift:
+      return "sift";
+    case FeatureType::kBrisk:
+      return "brisk";
   }
   return "?";
 }
@@ -89,7 +94,8 @@ std::string ExtractorOptions::Check() const {
   if (max_features < 4 || max_features > 100000) {
     return "max_features must be in [4, 100000], got " + std::to_string(max_features);
   }
-  if (orb_fast_threshold < 1 || orb_fast_threshold > 100) return "orb_fast_threshold must be in [1, 100]";
+  if (orb_fast_threshold < 1 || orb_fast_threshold > 100)
+    return "orb_fast_threshold must be in [1, 100]";
   if (orb_levels < 1 || orb_levels > 16) return "orb_levels must be in [1, 16]";
   return "";
 }
@@ -114,7 +120,8 @@ Features ExtractAffineSimulated(const FeatureExtractor& extractor, const cv::Mat
       if (phi != 0) {
         const double c = std::cos(phi * CV_PI / 180), s = std::sin(phi * CV_PI / 180);
         std::vector<cv::Point2f> corners = {
-            {0, 0}, {static_cast<float>(gray.cols), 0},
+            {0, 0},
+            {static_cast<float>(gray.cols), 0},
             {static_cast<float>(gray.cols), static_cast<float>(gray.rows)},
             {0, static_cast<float>(gray.rows)}};
         for (auto& p : corners) p = cv::Point2f(c * p.x - s * p.y, s * p.x + c * p.y);
@@ -302,8 +309,10 @@ HomographyResult EstimateHomography(const std::vector<cv::Point2f>& src,
   for (size_t i = 0; i < src.size(); ++i) {
     if (!r.inlier_mask[i]) continue;
     centre += cv::Point2d(src[i]);
-    lo = {std::min(lo.x, static_cast<double>(src[i].x)), std::min(lo.y, static_cast<double>(src[i].y))};
-    hi = {std::max(hi.x, static_cast<double>(src[i].x)), std::max(hi.y, static_cast<double>(src[i].y))};
+    lo = {std::min(lo.x, static_cast<double>(src[i].x)),
+          std::min(lo.y, static_cast<double>(src[i].y))};
+    hi = {std::max(hi.x, static_cast<double>(src[i].x)),
+          std::max(hi.y, static_cast<double>(src[i].y))};
   }
   centre *= 1.0 / r.inliers;
   double centre_scale = 0;

@@ -4,10 +4,11 @@
 #pragma once
 
 #include <memory>
-#include <opencv2/core.hpp>
 #include <optional>
 #include <string>
 #include <vector>
+
+#include <opencv2/core.hpp>
 
 namespace optinav::features {
 
@@ -35,7 +36,7 @@ class FeatureExtractor {
 
 struct ExtractorOptions {
   FeatureType type = FeatureType::kOrb;
-  int max_features = 1024;  // strongest N kept
+  int max_features = 1024;      // strongest N kept
   int orb_fast_threshold = 12;  // lower than OpenCV's 20: aerial imagery is low in contrast
   int orb_levels = 8;           // pyramid levels (scale factor 1.2 each)
   std::string Check() const;    // "" when valid
@@ -57,8 +58,8 @@ std::vector<cv::DMatch> MatchWithRatio(const cv::Mat& query, const cv::Mat& trai
 
 struct HomographyOptions {
   double reprojection_threshold_px = 4.0;
-  int min_inliers = 12;           // at least 4 by definition; higher rejects chance fits
-  double min_inlier_ratio = 0.0;  // inliers / matches
+  int min_inliers = 12;                     // at least 4 by definition; higher rejects chance fits
+  double min_inlier_ratio = 0.0;            // inliers / matches
   double min_scale = 0.2, max_scale = 5.0;  // singular values of the linear part
   double max_anisotropy = 3.0;              // ratio of those singular values (shear, squash)
   int max_iterations = 5000;

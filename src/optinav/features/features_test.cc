@@ -1,7 +1,6 @@
 #include "optinav/features/features.h"
 
 #include <gtest/gtest.h>
-
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -69,14 +68,17 @@ TEST(Homography, AerialPhotoPairIsConsistent) {
   const auto fwd_matches = MatchWithRatio(f1.descriptors, f3.descriptors, ex->norm(), 0.75f);
   auto estimate = [&](const Features& a, const Features& b) {
     std::vector<cv::Point2f> src, dst;
-    const auto matches = &a == &f1 ? fwd_matches
-                                   : MatchWithRatio(a.descriptors, b.descriptors, ex->norm(), 0.75f);
+    const auto matches =
+        &a == &f1 ? fwd_matches : MatchWithRatio(a.descriptors, b.descriptors, ex->norm(), 0.75f);
     for (const auto& m : matches) {
       src.push_back(a.keypoints[m.queryIdx].pt);
       dst.push_back(b.keypoints[m.trainIdx].pt);
     }
-    return EstimateHomography(src, dst, {.reprojection_threshold_px = 5.0, .min_inliers = 20,
-                                         .max_scale = 8.0, .max_anisotropy = 8.0});
+    return EstimateHomography(src, dst,
+                              {.reprojection_threshold_px = 5.0,
+                               .min_inliers = 20,
+                               .max_scale = 8.0,
+                               .max_anisotropy = 8.0});
   };
   const HomographyResult fwd = estimate(f1, f3), bwd = estimate(f3, f1);
   ASSERT_TRUE(fwd.ok) << fwd.reason;
@@ -91,9 +93,10 @@ TEST(Homography, AerialPhotoPairIsConsistent) {
     worst = std::max(worst, cv::norm(ApplyHomography(bwd.H, p3) - p1));
     ++checked;
   }
-  std::printf("aero1<->aero3 (affine-simulated BRISK): %d / %d inliers, round trip over %d "
-              "inliers: worst %.2f px (threshold 10)\n",
-              fwd.inliers, bwd.inliers, checked, worst);
+  std::printf(
+      "aero1<->aero3 (affine-simulated BRISK): %d / %d inliers, round trip over %d "
+      "inliers: worst %.2f px (threshold 10)\n",
+      fwd.inliers, bwd.inliers, checked, worst);
   EXPECT_GE(checked, 20);
   EXPECT_LT(worst, 10.0);
 }
@@ -108,15 +111,17 @@ TEST(Homography, RejectsMirrorsTooFewAndNoise) {
   }
   const HomographyResult m = EstimateHomography(src, mirrored);
   EXPECT_FALSE(m.ok) << "a mirror image must not give a homography";
-  const HomographyResult few = EstimateHomography({src.begin(), src.begin() + 3},
-                                                  {src.begin(), src.begin() + 3});
+  const HomographyResult few =
+      EstimateHomography({src.begin(), src.begin() + 3}, {src.begin(), src.begin() + 3});
   EXPECT_FALSE(few.ok);
   std::vector<cv::Point2f> noise;
-  for (int i = 0; i < 100; ++i) noise.emplace_back(rng.uniform(0.f, 400.f), rng.uniform(0.f, 300.f));
+  for (int i = 0; i < 100; ++i)
+    noise.emplace_back(rng.uniform(0.f, 400.f), rng.uniform(0.f, 300.f));
   EXPECT_FALSE(EstimateHomography(src, noise).ok);
   // A clean similarity is accepted with all inliers.
   std::vector<cv::Point2f> sim;
-  for (const auto& p : src) sim.emplace_back(0.8f * p.x - 0.6f * p.y + 50, 0.6f * p.x + 0.8f * p.y + 20);
+  for (const auto& p : src)
+    sim.emplace_back(0.8f * p.x - 0.6f * p.y + 50, 0.6f * p.x + 0.8f * p.y + 20);
   const HomographyResult ok = EstimateHomography(src, sim);
   ASSERT_TRUE(ok.ok) << ok.reason;
   EXPECT_EQ(ok.inliers, 100);

@@ -1,9 +1,9 @@
 #include "optinav/geo/geo.h"
 
+#include <cmath>
+
 #include <geodesic.h>
 #include <proj.h>
-
-#include <cmath>
 
 namespace optinav::geo {
 namespace {
@@ -53,7 +53,9 @@ Eigen::Vector2d GeoTransform::AzimuthDegToPixelDirection(double azimuth_deg) con
       .normalized();
 }
 
-double GeoTransform::UnitsPerPixel() const { return std::sqrt(std::abs(c[1] * c[5] - c[2] * c[4])); }
+double GeoTransform::UnitsPerPixel() const {
+  return std::sqrt(std::abs(c[1] * c[5] - c[2] * c[4]));
+}
 
 struct CrsTransform::Impl {
   PJ_CONTEXT* ctx = nullptr;
@@ -77,13 +79,13 @@ CrsTransform::CrsTransform(const std::string& crs) : impl_(std::make_unique<Impl
   const PJ_TYPE type = proj_get_type(src);
   geographic_ = type == PJ_TYPE_GEOGRAPHIC_2D_CRS || type == PJ_TYPE_GEOGRAPHIC_3D_CRS;
   PJ* dst = proj_create(impl_->ctx, "EPSG:4326");
-  PJ* raw = src && dst ? proj_create_crs_to_crs_from_pj(impl_->ctx, src, dst, nullptr, nullptr)
-                       : nullptr;
+  PJ* raw =
+      src && dst ? proj_create_crs_to_crs_from_pj(impl_->ctx, src, dst, nullptr, nullptr) : nullptr;
   proj_destroy(src);
   proj_destroy(dst);
   if (!raw) {
-    throw Error("no transformation from CRS '" + name_ + "' to WGS 84 (PROJ: " +
-                    ProjError(impl_->ctx) + ")",
+    throw Error("no transformation from CRS '" + name_ +
+                    "' to WGS 84 (PROJ: " + ProjError(impl_->ctx) + ")",
                 {.field = "crs"});
   }
   // Axis order made explicit: input (easting, northing) or (lon, lat); output (lon, lat).
@@ -124,15 +126,15 @@ double CrsTransform::MetresPerUnit(const Eigen::Vector2d& xy) const {
 
 GeodesicResult GeodesicInverse(const LatLon& a, const LatLon& b) {
   GeodesicResult r;
-  geod_inverse(&Wgs84(), a.lat_deg, a.lon_deg, b.lat_deg, b.lon_deg, &r.distance_m,
-               &r.azimuth1_deg, &r.azimuth2_deg);
+  geod_inverse(&Wgs84(), a.lat_deg, a.lon_deg, b.lat_deg, b.lon_deg, &r.distance_m, &r.azimuth1_deg,
+               &r.azimuth2_deg);
   return r;
 }
 
 LatLon GeodesicDirect(const LatLon& a, double azimuth_deg, double distance_m) {
   LatLon out;
-  geod_direct(&Wgs84(), a.lat_deg, a.lon_deg, azimuth_deg, distance_m, &out.lat_deg,
-              &out.lon_deg, nullptr);
+  geod_direct(&Wgs84(), a.lat_deg, a.lon_deg, azimuth_deg, distance_m, &out.lat_deg, &out.lon_deg,
+              nullptr);
   return out;
 }
 
@@ -164,7 +166,7 @@ LocalEnu::LocalEnu(const LatLon& origin, double height_m) : impl_(std::make_uniq
   impl_->origin_ecef = impl_->ToEcef(origin, height_m);
   const double lat = origin.lat_deg * M_PI / 180, lon = origin.lon_deg * M_PI / 180;
   // Rows: east, north, up unit vectors in ECEF.
-  impl_->enu_from_ecef << -std::sin(lon), std::cos(lon), 0,                          //
+  impl_->enu_from_ecef << -std::sin(lon), std::cos(lon), 0,                           //
       -std::sin(lat) * std::cos(lon), -std::sin(lat) * std::sin(lon), std::cos(lat),  //
       std::cos(lat) * std::cos(lon), std::cos(lat) * std::sin(lon), std::sin(lat);
 }

@@ -8,11 +8,12 @@
 //  - Geodesic distance and azimuth on the WGS84 ellipsoid (PROJ's geodesic routines).
 #pragma once
 
-#include <Eigen/Core>
 #include <array>
 #include <memory>
 #include <optional>
 #include <string>
+
+#include <Eigen/Core>
 
 #include "optinav/util/error.h"
 

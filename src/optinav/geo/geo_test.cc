@@ -1,8 +1,8 @@
 #include "optinav/geo/geo.h"
 
-#include <gtest/gtest.h>
-
 #include <cmath>
+
+#include <gtest/gtest.h>
 
 namespace optinav::geo {
 namespace {

@@ -1,12 +1,12 @@
 #include "optinav/geo/raster.h"
 
+#include <filesystem>
+#include <mutex>
+
 #include <cpl_conv.h>
 #include <cpl_error.h>
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
-
-#include <filesystem>
-#include <mutex>
 #include <opencv2/imgproc.hpp>
 
 namespace optinav::geo {
@@ -59,7 +59,8 @@ GeoRaster GeoRaster::Open(const std::string& path) {
     throw Error("raster has no georeference (no geotransform)", {.file = path});
   }
   const OGRSpatialReference* srs = ds->GetSpatialRef();
-  if (!srs || srs->IsEmpty()) throw Error("raster has no coordinate reference system", {.file = path});
+  if (!srs || srs->IsEmpty())
+    throw Error("raster has no coordinate reference system", {.file = path});
   char* wkt = nullptr;
   const char* const wkt_options[] = {"FORMAT=WKT2_2019", nullptr};
   srs->exportToWkt(&wkt, wkt_options);
@@ -175,8 +176,8 @@ void WriteGeoTiff(const std::string& path, const cv::Mat& image, const GeoTransf
   for (auto& o : opts) copt.push_back(o.data());
   copt.push_back(nullptr);
   const std::string tmp = path + ".tmp.tif";
-  GDALDataset* ds = driver->Create(tmp.c_str(), image.cols, image.rows, image.channels(),
-                                   GDT_Byte, copt.data());
+  GDALDataset* ds =
+      driver->Create(tmp.c_str(), image.cols, image.rows, image.channels(), GDT_Byte, copt.data());
   if (!ds) throw Error("cannot create GeoTIFF: " + LastGdalError(), {.file = path});
   auto fail = [&](const std::string& what) {
     GDALClose(ds);

@@ -2,10 +2,11 @@
 // float, nodata, overviews, tiled or striped), read by window so large maps never sit in memory.
 #pragma once
 
-#include <opencv2/core.hpp>
 #include <memory>
 #include <optional>
 #include <string>
+
+#include <opencv2/core.hpp>
 
 #include "optinav/geo/geo.h"
 

@@ -1,9 +1,10 @@
 #include "optinav/geometry/alignment.h"
 
-#include <Eigen/SVD>
 #include <cmath>
 #include <limits>
 #include <string>
+
+#include <Eigen/SVD>
 
 #include "optinav/util/error.h"
 

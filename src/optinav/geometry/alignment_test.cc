@@ -1,8 +1,8 @@
 #include "optinav/geometry/alignment.h"
 
-#include <gtest/gtest.h>
-
 #include <random>
+
+#include <gtest/gtest.h>
 
 #include "optinav/util/error.h"
 

@@ -1,7 +1,8 @@
 #include "optinav/geometry/lie.h"
 
-#include <Eigen/SVD>
 #include <cmath>
+
+#include <Eigen/SVD>
 
 namespace optinav {
 

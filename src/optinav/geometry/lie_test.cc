@@ -1,9 +1,9 @@
 #include "optinav/geometry/lie.h"
 
-#include <gtest/gtest.h>
-
 #include <cmath>
 #include <random>
+
+#include <gtest/gtest.h>
 
 namespace optinav {
 namespace {

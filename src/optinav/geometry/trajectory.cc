@@ -44,7 +44,8 @@ Trajectory Trajectory::Subset(const std::vector<size_t>& indices) const {
 
 void Trajectory::KeepOnly(const std::vector<size_t>& indices) {
   bool increasing = true;
-  for (size_t k = 1; k < indices.size() && increasing; ++k) increasing = indices[k] > indices[k - 1];
+  for (size_t k = 1; k < indices.size() && increasing; ++k)
+    increasing = indices[k] > indices[k - 1];
   if (!increasing) {
     *this = Subset(indices);
     return;

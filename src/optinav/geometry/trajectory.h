@@ -14,9 +14,9 @@
 namespace optinav {
 
 struct Trajectory {
-  std::vector<int64_t> t_ns;                    // empty when the source has no timestamps
-  std::vector<Eigen::Vector3d> positions;       // world_from_body translation
-  std::vector<Eigen::Matrix3d> rotations;       // world_from_body rotation
+  std::vector<int64_t> t_ns;               // empty when the source has no timestamps
+  std::vector<Eigen::Vector3d> positions;  // world_from_body translation
+  std::vector<Eigen::Matrix3d> rotations;  // world_from_body rotation
 
   size_t size() const { return positions.size(); }
   bool empty() const { return positions.empty(); }

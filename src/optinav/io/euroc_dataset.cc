@@ -1,9 +1,9 @@
 #include "optinav/io/euroc_dataset.h"
 
+#include <filesystem>
+
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
-
-#include <filesystem>
 
 #include "optinav/io/text_parse.h"
 #include "optinav/util/config.h"
@@ -82,11 +82,11 @@ ImuCalibration ReadImuCalibration(const std::string& sensor_yaml) {
   c.gyroscope_random_walk = YamlGet<double>(f, f.root, "gyroscope_random_walk");
   c.accelerometer_noise_density = YamlGet<double>(f, f.root, "accelerometer_noise_density");
   c.accelerometer_random_walk = YamlGet<double>(f, f.root, "accelerometer_random_walk");
-  for (const auto& [name, value] :
-       {std::pair{"rate_hz", c.rate_hz}, {"gyroscope_noise_density", c.gyroscope_noise_density},
-        {"gyroscope_random_walk", c.gyroscope_random_walk},
-        {"accelerometer_noise_density", c.accelerometer_noise_density},
-        {"accelerometer_random_walk", c.accelerometer_random_walk}}) {
+  for (const auto& [name, value] : {std::pair{"rate_hz", c.rate_hz},
+                                    {"gyroscope_noise_density", c.gyroscope_noise_density},
+                                    {"gyroscope_random_walk", c.gyroscope_random_walk},
+                                    {"accelerometer_noise_density", c.accelerometer_noise_density},
+                                    {"accelerometer_random_walk", c.accelerometer_random_walk}}) {
     if (!(value > 0)) throw Error("must be positive", {.file = sensor_yaml, .field = name});
   }
   c.body_from_imu = ReadTbs(f);
@@ -173,11 +173,11 @@ void ReadTimedCsv(const std::string& data_csv, const char* const (&field_names)[
 std::vector<ImuSample> ReadImuCsv(const std::string& data_csv) {
   static constexpr const char* kFields[] = {"timestamp", "w_x", "w_y", "w_z", "a_x", "a_y", "a_z"};
   std::vector<ImuSample> out;
-  ReadTimedCsv<6>(data_csv, kFields, /*extra_ok=*/false, "timestamp, wx, wy, wz, ax, ay, az",
-                  [&](int64_t t, const double* v) {
-                    out.push_back({t, Eigen::Vector3d(v[0], v[1], v[2]),
-                                   Eigen::Vector3d(v[3], v[4], v[5])});
-                  });
+  ReadTimedCsv<6>(
+      data_csv, kFields, /*extra_ok=*/false, "timestamp, wx, wy, wz, ax, ay, az",
+      [&](int64_t t, const double* v) {
+        out.push_back({t, Eigen::Vector3d(v[0], v[1], v[2]), Eigen::Vector3d(v[3], v[4], v[5])});
+      });
   return out;
 }
 

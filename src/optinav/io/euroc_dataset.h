@@ -18,7 +18,7 @@ namespace optinav::io {
 
 struct CameraCalibration {
   std::string camera_model = "pinhole";
-  int width = 0, height = 0;        // pixels
+  int width = 0, height = 0;              // pixels
   double fx = 0, fy = 0, cx = 0, cy = 0;  // pinhole intrinsics, pixels
   // "radial-tangential" (k1 k2 p1 p2) or "equidistant" (k1..k4) or "none".
   std::string distortion_model = "none";
@@ -61,9 +61,9 @@ struct EurocDataset {
   std::string mav0_dir;
   std::optional<CameraStream> cam0, cam1;
   std::optional<ImuCalibration> imu_calibration;
-  std::string imu_csv;           // empty when there is no imu0
-  std::string gnss_csv;          // empty when there is no gnss0
-  std::string groundtruth_csv;   // empty when there is no ground truth
+  std::string imu_csv;          // empty when there is no imu0
+  std::string gnss_csv;         // empty when there is no gnss0
+  std::string groundtruth_csv;  // empty when there is no ground truth
 };
 
 struct EurocOpenOptions {

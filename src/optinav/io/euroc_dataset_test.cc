@@ -1,8 +1,8 @@
 #include "optinav/io/euroc_dataset.h"
 
-#include <gtest/gtest.h>
-
 #include <filesystem>
+
+#include <gtest/gtest.h>
 
 #include "optinav/io/trajectory_io.h"
 #include "optinav/util/testing.h"
@@ -95,8 +95,8 @@ TEST(EurocDataset, MissingImageNamesFileAndLine) {
 TEST(EurocDataset, BadImuAndGnssAndYaml) {
   const fs::path root = MakeDataset("badimu");
   EXPECT_NO_THROW(OpenEurocDataset(root.string()));
-  const auto imu_csv = testing::WriteFile(root / "imu0" / "data.csv",
-                                          "100,0,0,0,0,0,9.81\n105,0,nan,0,0,0,9.81\n");
+  const auto imu_csv =
+      testing::WriteFile(root / "imu0" / "data.csv", "100,0,0,0,0,0,9.81\n105,0,nan,0,0,0,9.81\n");
   EXPECT_THROW(ReadImuCsv(imu_csv), Error);
   testing::WriteFile(root / "imu0" / "data.csv", "100,0,0,0,0,0,9.81\n90,0,0,0,0,0,9.81\n");
   try {
@@ -105,8 +105,8 @@ TEST(EurocDataset, BadImuAndGnssAndYaml) {
   } catch (const Error& e) {
     EXPECT_EQ(e.context().line, 2);
   }
-  const auto gnss = testing::WriteFile(root / "gnss0" / "data.csv",
-                                       "#t,x,y,z\n100,1,2,3\n200,1,2\n");
+  const auto gnss =
+      testing::WriteFile(root / "gnss0" / "data.csv", "#t,x,y,z\n100,1,2,3\n200,1,2\n");
   EXPECT_THROW(ReadGnssCsv(gnss), Error);
   testing::WriteFile(root / "gnss0" / "data.csv", "#t,x,y,z\n100,1,2,3\n200,1,2,4\n");
   EXPECT_EQ(ReadGnssCsv(gnss).size(), 2u);

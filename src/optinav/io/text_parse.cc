@@ -1,23 +1,24 @@
 #include "optinav/io/text_parse.h"
 
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <system_error>
+
 #include <fcntl.h>
 #include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include <charconv>
-#include <cstring>
-#include <cmath>
-#include <cstdio>
-#include <filesystem>
-#include <fstream>
-#include <system_error>
-
 namespace optinav::io {
 
 MappedFile::MappedFile(const std::string& path) {
   std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) throw Error("is a directory, not a file", {.file = path});
+  if (std::filesystem::is_directory(path, ec))
+    throw Error("is a directory, not a file", {.file = path});
   const int fd = ::open(path.c_str(), O_RDONLY);
   if (fd < 0) throw Error("cannot open file", {.file = path});
   struct stat st {};
@@ -46,7 +47,8 @@ MappedFile::~MappedFile() {
 
 std::string ReadFileToString(const std::string& path) {
   std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) throw Error("is a directory, not a file", {.file = path});
+  if (std::filesystem::is_directory(path, ec))
+    throw Error("is a directory, not a file", {.file = path});
   std::FILE* f = std::fopen(path.c_str(), "rb");
   if (!f) throw Error("cannot open file", {.file = path});
   std::string data;
@@ -111,17 +113,16 @@ void SplitFields(std::string_view line, char delim, std::vector<std::string_view
 
 namespace {
 
-constexpr double kPow10[] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,
-                             1e8,  1e9,  1e10, 1e11, 1e12, 1e13, 1e14, 1e15,
-                             1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
+constexpr double kPow10[] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8,  1e9,  1e10, 1e11,
+                             1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
 
 // Parses a decimal number at [p, end). Clinger's fast path: with at most 15 significant digits
 // and a power of ten up to 22 the result of one multiplication or division is correctly
 // rounded; anything else goes to std::from_chars. Returns the end of the number or nullptr.
 // True when the 8 bytes at p are all ASCII digits.
 inline bool IsEightDigits(uint64_t v) {
-  return (((v & 0xF0F0F0F0F0F0F0F0ULL) | (((v + 0x0606060606060606ULL) & 0xF0F0F0F0F0F0F0F0ULL) >> 4)) ==
-          0x3333333333333333ULL);
+  return (((v & 0xF0F0F0F0F0F0F0F0ULL) |
+           (((v + 0x0606060606060606ULL) & 0xF0F0F0F0F0F0F0F0ULL) >> 4)) == 0x3333333333333333ULL);
 }
 
 // Value of 8 ASCII digits (little-endian load), three multiply-shift steps instead of eight
@@ -130,7 +131,8 @@ inline uint64_t EightDigitsValue(uint64_t v) {
   v -= 0x3030303030303030ULL;
   v = (v * 10) + (v >> 8);
   v = (((v & 0x000000FF000000FFULL) * 0x000F424000000064ULL) +
-       (((v >> 16) & 0x000000FF000000FFULL) * 0x0000271000000001ULL)) >> 32;
+       (((v >> 16) & 0x000000FF000000FFULL) * 0x0000271000000001ULL)) >>
+      32;
   return v;
 }
 
@@ -145,7 +147,8 @@ inline const char* ParseDigits(const char* p, const char* end, uint64_t* m) {
     acc = acc * 100000000ULL + EightDigitsValue(v);
     p += 8;
   }
-  while (p < end && static_cast<unsigned>(*p - '0') < 10u) acc = acc * 10 + static_cast<unsigned>(*p++ - '0');
+  while (p < end && static_cast<unsigned>(*p - '0') < 10u)
+    acc = acc * 10 + static_cast<unsigned>(*p++ - '0');
   *m = acc;
   return p;
 }
@@ -346,7 +349,8 @@ int64_t ParseSecondsToNs(std::string_view field, const ErrorContext& ctx) {
 
 std::string FormatNsAsSeconds(int64_t t_ns) {
   const bool negative = t_ns < 0;
-  const uint64_t a = negative ? static_cast<uint64_t>(-(t_ns + 1)) + 1 : static_cast<uint64_t>(t_ns);
+  const uint64_t a =
+      negative ? static_cast<uint64_t>(-(t_ns + 1)) + 1 : static_cast<uint64_t>(t_ns);
   char buf[48];
   std::snprintf(buf, sizeof(buf), "%s%llu.%09llu", negative ? "-" : "",
                 static_cast<unsigned long long>(a / 1000000000ULL),

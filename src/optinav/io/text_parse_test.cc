@@ -1,11 +1,10 @@
 #include "optinav/io/text_parse.h"
 
-#include <gtest/gtest.h>
-
-#include <fmt/format.h>
-
 #include <filesystem>
 #include <random>
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
 
 #include "optinav/util/testing.h"
 
@@ -108,8 +107,8 @@ TEST(ParseNumberLine, FastPathAgreesWithStrictParsers) {
   // 17 significant digits take the exact slow path and still round-trip.
   ASSERT_TRUE(ParseNumberLine("1 0.12345678901234567 2 3 4 5 6 7", ' ', 8, true, false, &t, v));
   EXPECT_EQ(v[1], 0.12345678901234567);
-  ASSERT_TRUE(ParseNumberLine("1403715524907143168, 0.5,1,2,3,4,5,6,7,8", ',', 8, false, true, &t,
-                              v, 8));
+  ASSERT_TRUE(
+      ParseNumberLine("1403715524907143168, 0.5,1,2,3,4,5,6,7,8", ',', 8, false, true, &t, v, 8));
   EXPECT_EQ(t, 1403715524907143168);
   EXPECT_EQ(v[7], 6.0);
 }

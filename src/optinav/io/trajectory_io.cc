@@ -1,10 +1,10 @@
 #include "optinav/io/trajectory_io.h"
 
-#include <fmt/format.h>
-#include <spdlog/spdlog.h>
-
 #include <cmath>
 #include <vector>
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include "optinav/io/text_parse.h"
 
@@ -33,15 +33,16 @@ void AddChecked(int64_t t, double w, double x, double y, double z, const Eigen::
     } else {
       ErrorContext ctx = context();
       ctx.field = time_field;
-      throw Error(fmt::format("timestamp {} s goes backwards (previous {} s)",
-                              FormatNsAsSeconds(t), FormatNsAsSeconds(traj->t_ns.back())),
+      throw Error(fmt::format("timestamp {} s goes backwards (previous {} s)", FormatNsAsSeconds(t),
+                              FormatNsAsSeconds(traj->t_ns.back())),
                   ctx);
     }
   }
   const double inv = 1.0 / std::sqrt(norm2);
   traj->t_ns.push_back(t);
   traj->positions.push_back(p);
-  traj->rotations.push_back(Eigen::Quaterniond(w * inv, x * inv, y * inv, z * inv).toRotationMatrix());
+  traj->rotations.push_back(
+      Eigen::Quaterniond(w * inv, x * inv, y * inv, z * inv).toRotationMatrix());
 }
 
 // The two timestamped one-pose-per-line layouts.
@@ -55,9 +56,13 @@ struct PoseLineFormat {
   size_t bytes_per_line;  // for reserving
 };
 
-constexpr PoseLineFormat kTumFormat{' ', true, false, false, kTumFields,
-                                    "8 values 't x y z qx qy qz qw' (TUM)", 64};
-constexpr PoseLineFormat kEurocFormat{',', false, true, true, kEurocFields,
+constexpr PoseLineFormat kTumFormat{
+    ' ', true, false, false, kTumFields, "8 values 't x y z qx qy qz qw' (TUM)", 64};
+constexpr PoseLineFormat kEurocFormat{',',
+                                      false,
+                                      true,
+                                      true,
+                                      kEurocFields,
                                       "8 comma-separated values 'timestamp [ns], px, py, pz, qw, "
                                       "qx, qy, qz' (EuRoC)",
                                       100};
@@ -121,8 +126,7 @@ Trajectory ReadKitti(const std::string& path, const std::string& times_path) {
     ErrorContext ctx{.file = path, .line = cursor.line_number()};
     SplitFields(line, ' ', &f);
     if (f.size() != 12) {
-      throw Error(fmt::format("expected 12 values (3x4 row-major pose, KITTI), found {}",
-                              f.size()),
+      throw Error(fmt::format("expected 12 values (3x4 row-major pose, KITTI), found {}", f.size()),
                   ctx);
     }
     for (int k = 0; k < 12; ++k) {
@@ -172,10 +176,14 @@ std::optional<TrajectoryFormat> ParseTrajectoryFormat(const std::string& name) {
 
 std::string TrajectoryFormatName(TrajectoryFormat format) {
   switch (format) {
-    case TrajectoryFormat::kAuto: return "auto";
-    case TrajectoryFormat::kTum: return "tum";
-    case TrajectoryFormat::kKitti: return "kitti";
-    case TrajectoryFormat::kEuroc: return "euroc";
+    case TrajectoryFormat::kAuto:
+      return "auto";
+    case TrajectoryFormat::kTum:
+      return "tum";
+    case TrajectoryFormat::kKitti:
+      return "kitti";
+    case TrajectoryFormat::kEuroc:
+      return "euroc";
   }
   return "?";
 }
@@ -190,8 +198,8 @@ TrajectoryFormat DetectTrajectoryFormat(const std::string& path) {
     const std::string_view t = Trim(line);
     if (t.empty()) continue;
     if (t.front() == '#') {
-      if (t.find(',') != std::string_view::npos && (t.rfind("#timestamp", 0) == 0 ||
-                                                    t.rfind("#time", 0) == 0)) {
+      if (t.find(',') != std::string_view::npos &&
+          (t.rfind("#timestamp", 0) == 0 || t.rfind("#time", 0) == 0)) {
         euroc_header = true;
       }
       continue;
@@ -225,9 +233,9 @@ TrajectoryFormat DetectTrajectoryFormat(const std::string& path) {
       return TrajectoryFormat::kTum;
     }
     if (f.size() == 12) return TrajectoryFormat::kKitti;
-    throw Error(fmt::format("cannot detect format: {} columns (TUM has 8, KITTI 12)", f.size()) +
-                    hint,
-                ctx);
+    throw Error(
+        fmt::format("cannot detect format: {} columns (TUM has 8, KITTI 12)", f.size()) + hint,
+        ctx);
   }
   throw Error("empty trajectory file (no data lines)", {.file = path});
 }
@@ -237,10 +245,17 @@ Trajectory ReadTrajectory(const std::string& path, const TrajectoryReadOptions& 
   if (format == TrajectoryFormat::kAuto) format = DetectTrajectoryFormat(path);
   Trajectory traj;
   switch (format) {
-    case TrajectoryFormat::kTum: traj = ReadPoseLines(path, kTumFormat); break;
-    case TrajectoryFormat::kKitti: traj = ReadKitti(path, options.kitti_times_path); break;
-    case TrajectoryFormat::kEuroc: traj = ReadPoseLines(path, kEurocFormat); break;
-    case TrajectoryFormat::kAuto: break;
+    case TrajectoryFormat::kTum:
+      traj = ReadPoseLines(path, kTumFormat);
+      break;
+    case TrajectoryFormat::kKitti:
+      traj = ReadKitti(path, options.kitti_times_path);
+      break;
+    case TrajectoryFormat::kEuroc:
+      traj = ReadPoseLines(path, kEurocFormat);
+      break;
+    case TrajectoryFormat::kAuto:
+      break;
   }
   if (traj.empty()) {
     throw Error("no poses in " + TrajectoryFormatName(format) + " trajectory file", {.file = path});
@@ -264,20 +279,21 @@ void WriteTrajectory(const std::string& path, const Trajectory& traj, Trajectory
       for (size_t i = 0; i < traj.size(); ++i) {
         const auto& p = traj.positions[i];
         const Eigen::Quaterniond q = traj.quaternion(i);
-        fmt::format_to(std::back_inserter(out),
-                       "{} {:.9f} {:.9f} {:.9f} {:.9f} {:.9f} {:.9f} {:.9f}\n",
-                       FormatNsAsSeconds(traj.t_ns[i]), p.x(), p.y(), p.z(), q.x(), q.y(), q.z(),
-                       q.w());
+        fmt::format_to(
+            std::back_inserter(out), "{} {:.9f} {:.9f} {:.9f} {:.9f} {:.9f} {:.9f} {:.9f}\n",
+            FormatNsAsSeconds(traj.t_ns[i]), p.x(), p.y(), p.z(), q.x(), q.y(), q.z(), q.w());
       }
       break;
     case TrajectoryFormat::kEuroc:
-      out += "#timestamp [ns],p_RS_R_x [m],p_RS_R_y [m],p_RS_R_z [m],q_RS_w [],q_RS_x [],"
-             "q_RS_y [],q_RS_z []\n";
+      out +=
+          "#timestamp [ns],p_RS_R_x [m],p_RS_R_y [m],p_RS_R_z [m],q_RS_w [],q_RS_x [],"
+          "q_RS_y [],q_RS_z []\n";
       for (size_t i = 0; i < traj.size(); ++i) {
         const auto& p = traj.positions[i];
         const Eigen::Quaterniond q = traj.quaternion(i);
-        fmt::format_to(std::back_inserter(out), "{},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f}\n",
-                       traj.t_ns[i], p.x(), p.y(), p.z(), q.w(), q.x(), q.y(), q.z());
+        fmt::format_to(std::back_inserter(out),
+                       "{},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f}\n", traj.t_ns[i], p.x(),
+                       p.y(), p.z(), q.w(), q.x(), q.y(), q.z());
       }
       break;
     case TrajectoryFormat::kKitti:

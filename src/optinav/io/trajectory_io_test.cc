@@ -1,9 +1,9 @@
 #include "optinav/io/trajectory_io.h"
 
-#include <gtest/gtest.h>
-
 #include <fstream>
 #include <sstream>
+
+#include <gtest/gtest.h>
 
 #include "optinav/util/testing.h"
 
@@ -31,13 +31,13 @@ TEST(ReadTrajectory, DetectsAndReadsEvoTestData) {
     const char* name;
     TrajectoryFormat format;
   };
-  for (const Case& c : {Case{"KITTI_00_gt.txt", TrajectoryFormat::kKitti},
-                        Case{"KITTI_00_ORB.txt", TrajectoryFormat::kKitti},
-                        Case{"freiburg1_xyz-groundtruth.txt", TrajectoryFormat::kTum},
-                        Case{"freiburg1_xyz-rgbdslam.txt", TrajectoryFormat::kTum},
-                        Case{"fr2_desk_ORB.txt", TrajectoryFormat::kTum},
-                        Case{"V102.txt", TrajectoryFormat::kTum},
-                        Case{"V102_groundtruth.csv", TrajectoryFormat::kEuroc}}) {
+  for (const Case& c :
+       {Case{"KITTI_00_gt.txt", TrajectoryFormat::kKitti},
+        Case{"KITTI_00_ORB.txt", TrajectoryFormat::kKitti},
+        Case{"freiburg1_xyz-groundtruth.txt", TrajectoryFormat::kTum},
+        Case{"freiburg1_xyz-rgbdslam.txt", TrajectoryFormat::kTum},
+        Case{"fr2_desk_ORB.txt", TrajectoryFormat::kTum}, Case{"V102.txt", TrajectoryFormat::kTum},
+        Case{"V102_groundtruth.csv", TrajectoryFormat::kEuroc}}) {
     const std::string path = Traj(c.name);
     EXPECT_EQ(DetectTrajectoryFormat(path), c.format) << c.name;
     const Trajectory t = ReadTrajectory(path);
@@ -66,7 +66,8 @@ TEST(ReadTrajectory, ValuesMatchTheTextOfTheFirstLines) {
 
   // KITTI_00_ORB.txt line 2 translation column: -0.003019783 -0.005097120 0.666445315
   const Trajectory kitti = ReadTrajectory(Traj("KITTI_00_ORB.txt"));
-  EXPECT_TRUE(kitti.positions[1].isApprox(Eigen::Vector3d(-0.003019783, -0.005097120, 0.666445315)));
+  EXPECT_TRUE(
+      kitti.positions[1].isApprox(Eigen::Vector3d(-0.003019783, -0.005097120, 0.666445315)));
   // Rotations are kept exactly as written (0.999999940 on the diagonal of line 1).
   EXPECT_EQ(kitti.rotations[0](1, 1), 0.999999940);
 }

@@ -1,6 +1,7 @@
 #include "optinav/maploc/frame_synth.h"
 
 #include <cmath>
+
 #include <opencv2/imgproc.hpp>
 
 namespace optinav::maploc {
@@ -19,7 +20,8 @@ cv::Mat SynthesizeFrame(const geo::GeoRaster& raster, double map_gsd_m, const Fr
     const Eigen::Vector3d ray = r * Eigen::Vector3d(u - s.width / 2.0, v - s.height / 2.0, f);
     const Eigen::Vector3d c = r * Eigen::Vector3d(0, 0, f);
     // Scale so the centre ray lands at (0, 0) with unit gsd there.
-    return cv::Point2d(f * (ray.x() / ray.z() - c.x() / c.z()), f * (ray.y() / ray.z() - c.y() / c.z()));
+    return cv::Point2d(f * (ray.x() / ray.z() - c.x() / c.z()),
+                       f * (ray.y() / ray.z() - c.y() / c.z()));
   };
   std::vector<cv::Point2f> fpts, mpts;
   for (const cv::Point2d p : {cv::Point2d(0, 0), cv::Point2d(s.width, 0),
@@ -35,7 +37,8 @@ cv::Mat SynthesizeFrame(const geo::GeoRaster& raster, double map_gsd_m, const Fr
   // Read the map window covering the frame (with a margin), then warp.
   const cv::Rect box = cv::boundingRect(mpts);
   const int margin = 4;
-  const cv::Rect win(box.x - margin, box.y - margin, box.width + 2 * margin, box.height + 2 * margin);
+  const cv::Rect win(box.x - margin, box.y - margin, box.width + 2 * margin,
+                     box.height + 2 * margin);
   // Downsample the window when the frame is much coarser than the map (anti-aliasing).
   const double down = std::max(1.0, scale);
   const int ow = std::max(1, static_cast<int>(win.width / down));

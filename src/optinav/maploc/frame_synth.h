@@ -14,12 +14,12 @@ namespace optinav::maploc {
 
 struct FrameSpec {
   Eigen::Vector2d centre_px = Eigen::Vector2d::Zero();  // ground point under the frame centre
-  double heading_deg = 0;   // frame up direction, clockwise from map up (-y)
-  double gsd_m = 1.0;       // metres per frame pixel at the centre
+  double heading_deg = 0;  // frame up direction, clockwise from map up (-y)
+  double gsd_m = 1.0;      // metres per frame pixel at the centre
   int width = 640, height = 480;
-  double tilt_deg = 0;           // camera pitch away from nadir (perspective)
-  double tilt_azimuth_deg = 0;   // direction of the tilt in the frame (0 = towards frame up)
-  double focal_px = 0;           // for the perspective of a tilt; 0: from a 60 deg FOV
+  double tilt_deg = 0;          // camera pitch away from nadir (perspective)
+  double tilt_azimuth_deg = 0;  // direction of the tilt in the frame (0 = towards frame up)
+  double focal_px = 0;          // for the perspective of a tilt; 0: from a 60 deg FOV
 };
 
 // Renders the frame from the raster (map resolution map_gsd_m); pixels outside the map are 0.

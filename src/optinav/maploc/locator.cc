@@ -1,15 +1,15 @@
 #include "optinav/maploc/locator.h"
 
-#include <fmt/format.h>
-
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <map>
 #include <mutex>
-#include <opencv2/imgproc.hpp>
 #include <unordered_map>
 #include <unordered_set>
+
+#include <fmt/format.h>
+#include <opencv2/imgproc.hpp>
 
 #include "optinav/geo/raster.h"
 #include "optinav/util/timer.h"
@@ -126,9 +126,9 @@ struct Locator::Impl {
       : db(d),
         options(o),
         crs(d.crs_wkt),
-        extractor(features::CreateFeatureExtractor(
-            {.type = d.feature_type, .max_features = o.frame_features,
-             .orb_levels = o.frame_orb_levels})) {
+        extractor(features::CreateFeatureExtractor({.type = d.feature_type,
+                                                    .max_features = o.frame_features,
+                                                    .orb_levels = o.frame_orb_levels})) {
     core_descriptors.resize(db.tiles.size());
     core_index.resize(db.tiles.size());
     for (const MapTile& t : db.tiles) {
@@ -144,7 +144,8 @@ struct Locator::Impl {
       cv::Mat& d = core_descriptors[t.index];
       if (!idx.empty()) {
         d.create(static_cast<int>(idx.size()), t.descriptors.cols, t.descriptors.type());
-        for (size_t k = 0; k < idx.size(); ++k) t.descriptors.row(idx[k]).copyTo(d.row(static_cast<int>(k)));
+        for (size_t k = 0; k < idx.size(); ++k)
+          t.descriptors.row(idx[k]).copyTo(d.row(static_cast<int>(k)));
       }
     }
   }
@@ -267,8 +268,8 @@ LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior)
   const features::Features ff = im.extractor->Extract(work);
   r.times.extraction_ms = stage.ElapsedSeconds() * 1e3;
   if (ff.size() < 8) {
-    return fail(fmt::format("too few features in the frame ({}): textureless, dark or blurred",
-                           ff.size()));
+    return fail(
+        fmt::format("too few features in the frame ({}): textureless, dark or blurred", ff.size()));
   }
   stage.Restart();
 
@@ -284,7 +285,8 @@ LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior)
         // Distance from the centre to the tile rectangle.
         const double dx = std::max({t.px.x - c.x(), 0.0, c.x() - (t.px.x + t.px.width)});
         const double dy = std::max({t.px.y - c.y(), 0.0, c.y() - (t.px.y + t.px.height)});
-        const double centre_d = std::hypot(t.px.x + t.px.width / 2 - c.x(), t.px.y + t.px.height / 2 - c.y());
+        const double centre_d =
+            std::hypot(t.px.x + t.px.width / 2 - c.x(), t.px.y + t.px.height / 2 - c.y());
         if (std::hypot(dx, dy) <= radius_px) best = std::min(best, centre_d);
       }
       if (best < 1e300) by_distance.emplace_back(best, t.index);
@@ -293,9 +295,8 @@ LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior)
       return fail("the prior lies outside the map");
     }
     std::sort(by_distance.begin(), by_distance.end());
-    for (size_t i = 0; i < by_distance.size() &&
-                       static_cast<int>(i) < im.options.max_candidate_tiles;
-         ++i) {
+    for (size_t i = 0;
+         i < by_distance.size() && static_cast<int>(i) < im.options.max_candidate_tiles; ++i) {
       candidates.push_back(by_distance[i].second);
     }
   } else {
@@ -305,8 +306,10 @@ LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior)
     if (im.all_descriptors.empty()) {
       return fail("the map has no features");
     }
-    const cv::Mat query = ff.descriptors.rowRange(0, std::min(ff.descriptors.rows, im.options.global_query_features));
-    const auto votes_m = features::MatchWithRatio(query, im.all_descriptors, ff.norm, im.options.ratio);
+    const cv::Mat query =
+        ff.descriptors.rowRange(0, std::min(ff.descriptors.rows, im.options.global_query_features));
+    const auto votes_m =
+        features::MatchWithRatio(query, im.all_descriptors, ff.norm, im.options.ratio);
     std::vector<double> votes(db.tiles.size(), 0.0);
     for (const auto& m : votes_m) votes[im.descriptor_tile[m.trainIdx]] += 1.0;
     std::vector<int> order(db.tiles.size());
@@ -390,7 +393,8 @@ LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior)
   }
   const cv::Matx22d j = features::HomographyJacobian(h.H, c);
   r.scale = std::sqrt(std::abs(j(0, 0) * j(1, 1) - j(0, 1) * j(1, 0)));
-  r.altitude_m = r.scale * db.map_gsd_m * gray.cols / (2.0 * std::tan(db.options.hfov_deg * M_PI / 360.0));
+  r.altitude_m =
+      r.scale * db.map_gsd_m * gray.cols / (2.0 * std::tan(db.options.hfov_deg * M_PI / 360.0));
   r.heading_deg = PixelDirectionToHeading({up.x - mc.x, up.y - mc.y});
   r.crs_xy = db.transform.PixelToCrs(r.map_px);
   r.latlon = im.crs.ToLatLon(r.crs_xy);
@@ -401,7 +405,6 @@ LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior)
   r.times.total_ms = total.ElapsedSeconds() * 1e3;
   return r;
 }
-
 
 LocateResult Locator::LocateByOrientationCorrelation(const cv::Mat& frame, const Prior& prior) {
   Impl& im = *impl_;
@@ -436,7 +439,8 @@ LocateResult Locator::LocateByOrientationCorrelation(const cv::Mat& frame, const
   const double diag_m = std::hypot(gray.cols, gray.rows) * frame_gsd;
   // Coarse level: the frame about `oc_coarse_px` across; fine level: twice that resolution
   // (never finer than the map or the frame).
-  const double fine_gsd = std::max({db.map_gsd_m, frame_gsd, frame_extent_m / (2.0 * im.options.oc_coarse_px)});
+  const double fine_gsd =
+      std::max({db.map_gsd_m, frame_gsd, frame_extent_m / (2.0 * im.options.oc_coarse_px)});
   const double coarse_gsd = 2.0 * fine_gsd;
   auto level = [&](double gsd) -> const OcLevel& {
     const long key = std::lround(gsd * 1000.0);
@@ -476,7 +480,8 @@ LocateResult Locator::LocateByOrientationCorrelation(const cv::Mat& frame, const
     const int n = cv::getOptimalDFTSize(win);
     cv::Mat padded = cv::Mat::zeros(n, n, CV_32FC2), map_spec;
     const cv::Rect src = cv::Rect(wx, wy, win, win) & cv::Rect(0, 0, lv.field.cols, lv.field.rows);
-    if (src.area() > 0) lv.field(src).copyTo(padded(cv::Rect(src.x - wx, src.y - wy, src.width, src.height)));
+    if (src.area() > 0)
+      lv.field(src).copyTo(padded(cv::Rect(src.x - wx, src.y - wy, src.width, src.height)));
     cv::dft(padded, map_spec, cv::DFT_COMPLEX_OUTPUT);
     cv::Mat patch_padded(n, n, CV_32FC2), patch_spec, prod, corr;
     const cv::Point2d fc(gray.cols / 2.0, gray.rows / 2.0);
@@ -538,7 +543,8 @@ LocateResult Locator::LocateByOrientationCorrelation(const cv::Mat& frame, const
       const double score = best_here / weight;
       if (score > best.score) {
         auto at = [&](int x, int y) {
-          return static_cast<double>(corr.at<float>(std::clamp(y, 0, n - 1), std::clamp(x, 0, n - 1)));
+          return static_cast<double>(
+              corr.at<float>(std::clamp(y, 0, n - 1), std::clamp(x, 0, n - 1)));
         };
         const double c0 = at(bx, by);
         const double dxx = at(bx - 1, by) - 2 * c0 + at(bx + 1, by);
@@ -547,7 +553,8 @@ LocateResult Locator::LocateByOrientationCorrelation(const cv::Mat& frame, const
         const double oy = dyy < 0 ? 0.5 * (at(bx, by - 1) - at(bx, by + 1)) / dyy : 0.0;
         const double px = wx + bx + std::clamp(ox, -0.5, 0.5) + pc;
         const double py = wy + by + std::clamp(oy, -0.5, 0.5) + pc;
-        best = {score, px * to_map, py * to_map, h, second_here > -1e300 ? second_here / weight : 0};
+        best = {score, px * to_map, py * to_map, h,
+                second_here > -1e300 ? second_here / weight : 0};
       }
     }
     return best;
@@ -562,7 +569,8 @@ LocateResult Locator::LocateByOrientationCorrelation(const cv::Mat& frame, const
   if (prior.heading_deg) {
     const double sigma = std::max(0.0, prior.heading_sigma_deg);
     const int k = static_cast<int>(std::ceil(sigma / step));
-    for (int i = -k; i <= k; ++i) headings.push_back(*prior.heading_deg + i * sigma / std::max(k, 1));
+    for (int i = -k; i <= k; ++i)
+      headings.push_back(*prior.heading_deg + i * sigma / std::max(k, 1));
   } else {
     for (double h = 0; h < 360.0 - 1e-9; h += step) headings.push_back(h);
   }
@@ -571,8 +579,7 @@ LocateResult Locator::LocateByOrientationCorrelation(const cv::Mat& frame, const
     return fail("no gradient structure to correlate (textureless frame or map)");
   }
   // Refine at twice the resolution around the coarse peak and heading.
-  const OcPeak f = correlate(fine, {c.heading},
-                             {c.x, c.y}, 2.5 * coarse_gsd / db.map_gsd_m);
+  const OcPeak f = correlate(fine, {c.heading}, {c.x, c.y}, 2.5 * coarse_gsd / db.map_gsd_m);
   const OcPeak& best = f.score > 0 ? f : c;
   r.times.matching_ms = stage.ElapsedSeconds() * 1e3;
   // Distinctiveness from the coarse search, which saw the whole prior area.
@@ -584,7 +591,7 @@ LocateResult Locator::LocateByOrientationCorrelation(const cv::Mat& frame, const
   r.altitude_m = prior.altitude_m.value_or(db.options.altitude_m);
   if (peak_ratio < im.options.oc_min_peak_ratio) {
     return fail(fmt::format("correlation peak not distinctive (ratio {:.2f} < {:.2f})", peak_ratio,
-                           im.options.oc_min_peak_ratio));
+                            im.options.oc_min_peak_ratio));
   }
   r.crs_xy = db.transform.PixelToCrs(r.map_px);
   r.latlon = im.crs.ToLatLon(r.crs_xy);

@@ -15,10 +15,11 @@
 #pragma once
 
 #include <memory>
-#include <opencv2/core.hpp>
 #include <optional>
 #include <string>
 #include <vector>
+
+#include <opencv2/core.hpp>
 
 #include "optinav/maploc/map_db.h"
 
@@ -36,13 +37,13 @@ struct Prior {
 };
 
 struct LocateOptions {
-  float ratio = 0.8f;               // Lowe's ratio
-  int top_n_per_tile = 300;         // best matches kept per tile
-  int max_candidate_tiles = 9;      // nearest tiles to the prior that are matched
-  int global_verify_tiles = 3;      // best-voted tiles verified (with neighbours) globally
+  float ratio = 0.8f;                 // Lowe's ratio
+  int top_n_per_tile = 300;           // best matches kept per tile
+  int max_candidate_tiles = 9;        // nearest tiles to the prior that are matched
+  int global_verify_tiles = 3;        // best-voted tiles verified (with neighbours) globally
   int global_features_per_tile = 64;  // map features per tile that vote in a global search
   int global_query_features = 500;    // frame features that vote
-  double dedupe_cell_px = 2.0;      // grid cell (map pixels at feature resolution)
+  double dedupe_cell_px = 2.0;        // grid cell (map pixels at feature resolution)
   features::HomographyOptions homography{.reprojection_threshold_px = 4.0, .min_inliers = 15};
   bool allow_orientation_correlation = true;
   double oc_heading_step_deg = 3.0;  // heading step of the coarse correlation search
@@ -52,7 +53,7 @@ struct LocateOptions {
   // ORB pyramid levels for the frame (x1.2 each). The map tiles carry 8 levels, so 4 on the
   // frame still covers the altitude changes tested (+-30 %), at ~40 % less extraction time.
   int frame_orb_levels = 4;
-  std::string ortho_path;            // overrides the database's orthophoto path (for OC)
+  std::string ortho_path;  // overrides the database's orthophoto path (for OC)
   std::string Check() const;
 };
 
@@ -62,10 +63,10 @@ struct StageTimes {
 
 struct LocateResult {
   bool localized = false;
-  std::string reason;  // why not (or "ok")
-  std::string method;  // "features" | "orientation-correlation" | ""
-  Eigen::Vector2d map_px = Eigen::Vector2d::Zero();   // frame centre in map pixels
-  Eigen::Vector2d crs_xy = Eigen::Vector2d::Zero();   // in the map CRS
+  std::string reason;                                // why not (or "ok")
+  std::string method;                                // "features" | "orientation-correlation" | ""
+  Eigen::Vector2d map_px = Eigen::Vector2d::Zero();  // frame centre in map pixels
+  Eigen::Vector2d crs_xy = Eigen::Vector2d::Zero();  // in the map CRS
   geo::LatLon latlon;
   double heading_deg = 0;  // frame up direction, clockwise from north
   double scale = 0;        // map pixels per frame pixel at the centre

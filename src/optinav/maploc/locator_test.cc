@@ -1,9 +1,9 @@
 #include "optinav/maploc/locator.h"
 
-#include <gtest/gtest.h>
-
 #include <algorithm>
 #include <random>
+
+#include <gtest/gtest.h>
 
 #include "optinav/maploc/frame_synth.h"
 #include "optinav/maploc/test_maps.h"
@@ -66,7 +66,8 @@ TEST_F(Aero1Map, SimulatedFramesWithRotationScaleAndTilt) {
     const cv::Mat frame = SynthesizeFrame(raster, 0.25, s);
     Prior prior;
     if (i % 2 == 0) {
-      prior.position = locator.PixelToLatLon(s.centre_px + Eigen::Vector2d(40 * u01(rng), -40 * u01(rng)));
+      prior.position =
+          locator.PixelToLatLon(s.centre_px + Eigen::Vector2d(40 * u01(rng), -40 * u01(rng)));
       prior.radius_m = 30;
     }
     const LocateResult r = locator.Locate(frame, prior);
@@ -76,9 +77,10 @@ TEST_F(Aero1Map, SimulatedFramesWithRotationScaleAndTilt) {
     errors.push_back(err_m);
     good += err_m < 1.0;
   }
-  std::printf("aero1 simulated frames: %d/%d localized, %d/%d within 1 m (threshold 95 %%), "
-              "median error %.3f m\n",
-              localized, kFrames, good, kFrames, Median(errors));
+  std::printf(
+      "aero1 simulated frames: %d/%d localized, %d/%d within 1 m (threshold 95 %%), "
+      "median error %.3f m\n",
+      localized, kFrames, good, kFrames, Median(errors));
   EXPECT_GE(good, 0.95 * kFrames);
 }
 
@@ -110,8 +112,8 @@ TEST_F(Aero1Map, BadFramesAreNotLocalizedWithAReason) {
   const LocateResult empty = locator.Locate(cv::Mat());
   EXPECT_FALSE(empty.localized);
   // A frame of another place (a cluttered indoor scene) does not match the map.
-  const cv::Mat other =
-      cv::imread((testing::SharedDataDir() / "images" / "box_in_scene.png").string(), cv::IMREAD_GRAYSCALE);
+  const cv::Mat other = cv::imread(
+      (testing::SharedDataDir() / "images" / "box_in_scene.png").string(), cv::IMREAD_GRAYSCALE);
   const LocateResult elsewhere = locator.Locate(other);
   EXPECT_FALSE(elsewhere.localized) << "matched a frame from outside the map";
   EXPECT_FALSE(elsewhere.reason.empty());
@@ -139,7 +141,8 @@ class NaipMap : public ::testing::Test {
     o.frame_height = 256;
     o.hfov_deg = 90;
     o.altitude_m = 640;  // footprint 1280 m = 256 px at 5 m
-    db_ = new MapDatabase(BuildMapDatabase(testmaps::Naip("20090818"), o, (*dir_ / "naip2009.db").string()));
+    db_ = new MapDatabase(
+        BuildMapDatabase(testmaps::Naip("20090818"), o, (*dir_ / "naip2009.db").string()));
   }
   static void TearDownTestSuite() {
     delete db_;
@@ -201,9 +204,10 @@ MapDatabase* NaipMap::db_ = nullptr;
 TEST_F(NaipMap, FramesFromLaterYearsWithHeading) {
   for (const char* year : {"20120731", "20170827"}) {
     const Outcome o = Run(year, 50, /*with_heading=*/true, 7, 3.0);
-    std::printf("NAIP map 2009, frames %s, heading +-10 deg: %d/%d within 25 m (threshold 95 %%), "
-                "median error %.2f m (threshold 10)\n",
-                year, o.good, o.frames, Median(o.errors));
+    std::printf(
+        "NAIP map 2009, frames %s, heading +-10 deg: %d/%d within 25 m (threshold 95 %%), "
+        "median error %.2f m (threshold 10)\n",
+        year, o.good, o.frames, Median(o.errors));
     EXPECT_GE(o.good, 0.95 * o.frames) << year;
     EXPECT_LT(Median(o.errors), 10.0) << year;
   }

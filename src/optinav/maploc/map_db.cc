@@ -1,16 +1,16 @@
 #include "optinav/maploc/map_db.h"
 
-#include <fmt/format.h>
-#include <spdlog/spdlog.h>
-#include <sqlite3.h>
-
 #include <atomic>
 #include <cmath>
 #include <filesystem>
 #include <mutex>
+#include <thread>
+
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
-#include <thread>
+#include <spdlog/spdlog.h>
+#include <sqlite3.h>
 
 #include "optinav/geo/raster.h"
 #include "optinav/util/progress.h"
@@ -63,9 +63,12 @@ struct Stmt {
 };
 
 nlohmann::json OptionsToJson(const MapBuildOptions& o) {
-  return {{"altitude_m", o.altitude_m},     {"hfov_deg", o.hfov_deg},
-          {"frame_width", o.frame_width},   {"frame_height", o.frame_height},
-          {"scale_factor", o.scale_factor}, {"overlap", o.overlap},
+  return {{"altitude_m", o.altitude_m},
+          {"hfov_deg", o.hfov_deg},
+          {"frame_width", o.frame_width},
+          {"frame_height", o.frame_height},
+          {"scale_factor", o.scale_factor},
+          {"overlap", o.overlap},
           {"features", features::FeatureTypeName(o.feature_type)},
           {"max_features", o.max_features}};
 }
@@ -124,8 +127,8 @@ void WriteDatabase(const MapDatabase& m, const std::string& out_path) {
       }
     }
     {
-      Stmt ins{db.Prepare(
-          "INSERT INTO tiles VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)")};
+      Stmt ins{
+          db.Prepare("INSERT INTO tiles VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)")};
       std::vector<float> kp;
       for (const MapTile& t : m.tiles) {
         int k = 1;
@@ -148,8 +151,8 @@ void WriteDatabase(const MapDatabase& m, const std::string& out_path) {
         sqlite3_bind_int(ins.st, k++, static_cast<int>(t.keypoints.size()));
         kp.clear();
         for (size_t i = 0; i < t.keypoints.size(); ++i) {
-          kp.insert(kp.end(), {t.keypoints[i].x, t.keypoints[i].y, t.keypoint_size[i],
-                               t.keypoint_angle[i]});
+          kp.insert(kp.end(),
+                    {t.keypoints[i].x, t.keypoints[i].y, t.keypoint_size[i], t.keypoint_angle[i]});
         }
         sqlite3_bind_blob(ins.st, k++, kp.data(), static_cast<int>(kp.size() * sizeof(float)),
                           SQLITE_TRANSIENT);
@@ -175,12 +178,17 @@ void WriteDatabase(const MapDatabase& m, const std::string& out_path) {
 }  // namespace
 
 std::string MapBuildOptions::Check() const {
-  if (!(altitude_m > 0 && altitude_m < 100000)) return fmt::format("--altitude must be in (0, 100000) m, got {}", altitude_m);
-  if (!(hfov_deg > 1 && hfov_deg < 179)) return fmt::format("--hfov must be in (1, 179) deg, got {}", hfov_deg);
+  if (!(altitude_m > 0 && altitude_m < 100000))
+    return fmt::format("--altitude must be in (0, 100000) m, got {}", altitude_m);
+  if (!(hfov_deg > 1 && hfov_deg < 179))
+    return fmt::format("--hfov must be in (1, 179) deg, got {}", hfov_deg);
   if (frame_width < 16 || frame_height < 16) return "--frame-size must be at least 16x16";
-  if (!(scale_factor > 0.05 && scale_factor <= 4)) return fmt::format("--scale-factor must be in (0.05, 4], got {}", scale_factor);
-  if (!(overlap >= 0 && overlap <= 0.9)) return fmt::format("--overlap must be in [0, 0.9], got {}", overlap);
-  if (max_features < 16 || max_features > 100000) return fmt::format("--max-features must be in [16, 100000], got {}", max_features);
+  if (!(scale_factor > 0.05 && scale_factor <= 4))
+    return fmt::format("--scale-factor must be in (0.05, 4], got {}", scale_factor);
+  if (!(overlap >= 0 && overlap <= 0.9))
+    return fmt::format("--overlap must be in [0, 0.9], got {}", overlap);
+  if (max_features < 16 || max_features > 100000)
+    return fmt::format("--max-features must be in [16, 100000], got {}", max_features);
   if (threads < 0) return "--threads must be >= 0";
   return "";
 }
@@ -229,7 +237,8 @@ MapDatabase PlanMapDatabase(const std::string& ortho_path, const MapBuildOptions
                                              {t.px.x + t.px.width, t.px.y},
                                              {t.px.x + t.px.width, t.px.y + t.px.height},
                                              {t.px.x, t.px.y + t.px.height}};
-      for (int k = 0; k < 4; ++k) t.corners[k] = crs.ToLatLon(m.transform.PixelToCrs(corners_px[k]));
+      for (int k = 0; k < 4; ++k)
+        t.corners[k] = crs.ToLatLon(m.transform.PixelToCrs(corners_px[k]));
       t.centre_crs = m.transform.PixelToCrs({t.px.x + t.px.width / 2, t.px.y + t.px.height / 2});
       t.centre = crs.ToLatLon(t.centre_crs);
       m.tiles.push_back(std::move(t));
@@ -245,10 +254,11 @@ MapDatabase BuildMapDatabase(const std::string& ortho_path, const MapBuildOption
   const int tile_img = std::max(16, static_cast<int>(std::lround(m.tile_px * level_scale)));
   const int n_threads =
       o.threads > 0 ? o.threads : std::max(1u, std::thread::hardware_concurrency());
-  spdlog::info("map build: {} x {} px at {:.3f} m/px, {} x {} tiles of {:.0f} px ({:.0f} m), "
-               "features at {:.3f} m/px on {} thread(s)",
-               m.width, m.height, m.map_gsd_m, m.cols, m.rows, m.tile_px, m.tile_px * m.map_gsd_m,
-               m.feature_gsd_m, n_threads);
+  spdlog::info(
+      "map build: {} x {} px at {:.3f} m/px, {} x {} tiles of {:.0f} px ({:.0f} m), "
+      "features at {:.3f} m/px on {} thread(s)",
+      m.width, m.height, m.map_gsd_m, m.cols, m.rows, m.tile_px, m.tile_px * m.map_gsd_m,
+      m.feature_gsd_m, n_threads);
   std::atomic<size_t> next{0};
   std::mutex error_mutex;
   std::string first_error;
@@ -266,7 +276,8 @@ MapDatabase BuildMapDatabase(const std::string& ortho_path, const MapBuildOption
         }
         MapTile& t = m.tiles[i];
         cv::Mat valid;
-        const int x = static_cast<int>(std::floor(t.px.x)), y = static_cast<int>(std::floor(t.px.y));
+        const int x = static_cast<int>(std::floor(t.px.x)),
+                  y = static_cast<int>(std::floor(t.px.y));
         const int side = static_cast<int>(std::ceil(t.px.width));
         const cv::Mat img = raster.ReadGray(x, y, side, side, tile_img, tile_img, &valid);
         // Keep detections away from no-data borders, where the edge itself looks like a corner.
@@ -298,7 +309,8 @@ MapDatabase BuildMapDatabase(const std::string& ortho_path, const MapBuildOption
 }
 
 MapDatabase LoadMapDatabase(const std::string& path) {
-  if (!std::filesystem::is_regular_file(path)) throw Error("map database not found", {.file = path});
+  if (!std::filesystem::is_regular_file(path))
+    throw Error("map database not found", {.file = path});
   Db db(path, SQLITE_OPEN_READONLY);
   MapDatabase m;
   std::map<std::string, std::string> meta;
@@ -393,9 +405,9 @@ MapDatabase LoadMapDatabase(const std::string& path) {
   }
   db.Check(rc, "read tiles");
   if (static_cast<int>(m.tiles.size()) != m.rows * m.cols) {
-    throw Error(fmt::format("map database has {} tiles, expected {} x {}", m.tiles.size(), m.cols,
-                            m.rows),
-                {.file = path});
+    throw Error(
+        fmt::format("map database has {} tiles, expected {} x {}", m.tiles.size(), m.cols, m.rows),
+        {.file = path});
   }
   return m;
 }

@@ -8,9 +8,10 @@
 #pragma once
 
 #include <array>
-#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
+
+#include <opencv2/core.hpp>
 
 #include "optinav/features/features.h"
 #include "optinav/geo/geo.h"
@@ -20,22 +21,22 @@ namespace optinav::maploc {
 constexpr int kMapFormatVersion = 1;
 
 struct MapBuildOptions {
-  double altitude_m = 300.0;  // flight altitude above ground
-  double hfov_deg = 60.0;     // horizontal field of view of the camera
+  double altitude_m = 300.0;                  // flight altitude above ground
+  double hfov_deg = 60.0;                     // horizontal field of view of the camera
   int frame_width = 640, frame_height = 480;  // camera frame size, pixels
   // Tile side = scale_factor x the frame's ground footprint width (the document reduces tiles
   // so that altitude, zoom and view changes still overlap one tile well).
   double scale_factor = 1.0;
   double overlap = 0.5;  // fraction of a tile shared with its neighbour, [0, 0.9]
   features::FeatureType feature_type = features::FeatureType::kOrb;
-  int max_features = 1024;  // per tile
-  int threads = 2;          // 0: all hardware threads
+  int max_features = 1024;    // per tile
+  int threads = 2;            // 0: all hardware threads
   std::string Check() const;  // "" when valid, else names the field and value
 };
 
 struct MapTile {
   int index = 0, row = 0, col = 0;
-  cv::Rect2d px;                      // bounds in map pixels (may extend past the raster)
+  cv::Rect2d px;                       // bounds in map pixels (may extend past the raster)
   std::array<geo::LatLon, 4> corners;  // UL, UR, LR, LL
   geo::LatLon centre;
   Eigen::Vector2d centre_crs = Eigen::Vector2d::Zero();
@@ -49,10 +50,10 @@ struct MapDatabase {
   int format_version = kMapFormatVersion;
   std::string ortho_path, crs_wkt, crs_name;
   geo::GeoTransform transform;
-  int width = 0, height = 0;          // raster size, pixels
-  double map_gsd_m = 0;               // metres per map pixel
-  double feature_gsd_m = 0;           // metres per pixel of the images features were taken on
-  double tile_px = 0, step_px = 0;    // tile side and spacing, map pixels
+  int width = 0, height = 0;        // raster size, pixels
+  double map_gsd_m = 0;             // metres per map pixel
+  double feature_gsd_m = 0;         // metres per pixel of the images features were taken on
+  double tile_px = 0, step_px = 0;  // tile side and spacing, map pixels
   int rows = 0, cols = 0;
   MapBuildOptions options;
   features::FeatureType feature_type = features::FeatureType::kOrb;

@@ -1,9 +1,9 @@
 #include "optinav/maploc/map_db.h"
 
+#include <filesystem>
+
 #include <gtest/gtest.h>
 #include <sqlite3.h>
-
-#include <filesystem>
 
 #include "optinav/maploc/test_maps.h"
 
@@ -27,10 +27,10 @@ TEST(MapDatabase, TileGridFromCameraFootprint) {
   EXPECT_NEAR(plan.map_gsd_m, 0.25, 1e-12);
   EXPECT_NEAR(plan.tile_px, 240.0, 1e-9);  // 60 m / 0.25 m
   EXPECT_NEAR(plan.step_px, 120.0, 1e-9);
-  EXPECT_EQ(plan.cols, 5);                 // ceil((640 - 240) / 120) + 1
-  EXPECT_EQ(plan.rows, 3);                 // ceil((480 - 240) / 120) + 1
+  EXPECT_EQ(plan.cols, 5);  // ceil((640 - 240) / 120) + 1
+  EXPECT_EQ(plan.rows, 3);  // ceil((480 - 240) / 120) + 1
   EXPECT_FALSE(plan.tiles[0].padded);
-  EXPECT_TRUE(plan.tiles[4].padded);       // 4 * 120 + 240 = 720 > 640
+  EXPECT_TRUE(plan.tiles[4].padded);  // 4 * 120 + 240 = 720 > 640
   // Corners through the geotransform and PROJ: tile 0 UL is the map origin.
   const geo::CrsTransform crs("EPSG:32633");
   const geo::LatLon ul = crs.ToLatLon({500000.0, 5560000.0});

@@ -1,8 +1,9 @@
 // Shared fixtures for maploc tests: real imagery wrapped into GeoTIFFs.
 #pragma once
 
-#include <opencv2/imgcodecs.hpp>
 #include <string>
+
+#include <opencv2/imgcodecs.hpp>
 
 #include "optinav/geo/raster.h"
 #include "optinav/util/testing.h"

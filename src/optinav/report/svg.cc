@@ -1,9 +1,9 @@
 #include "optinav/report/svg.h"
 
-#include <fmt/format.h>
-
 #include <algorithm>
 #include <cmath>
+
+#include <fmt/format.h>
 
 namespace optinav::report {
 
@@ -22,7 +22,8 @@ Rgb ColorMap(double t) {
   const double f = x - i;
   Rgb c;
   auto mix = [&](int k) {
-    return static_cast<unsigned char>(std::lround(255.0 * ((1 - f) * kStops[i][k] + f * kStops[i + 1][k])));
+    return static_cast<unsigned char>(
+        std::lround(255.0 * ((1 - f) * kStops[i][k] + f * kStops[i + 1][k])));
   };
   c.r = mix(0);
   c.g = mix(1);
@@ -34,11 +35,20 @@ std::string XmlEscape(const std::string& text) {
   std::string out;
   for (char ch : text) {
     switch (ch) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      default: out += ch;
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      default:
+        out += ch;
     }
   }
   return out;

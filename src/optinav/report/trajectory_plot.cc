@@ -1,10 +1,10 @@
 #include "optinav/report/trajectory_plot.h"
 
-#include <fmt/format.h>
-
 #include <algorithm>
 #include <cmath>
 #include <limits>
+
+#include <fmt/format.h>
 
 #include "optinav/io/text_parse.h"
 #include "optinav/report/svg.h"
@@ -40,9 +40,9 @@ struct Axes {
       svg->Text(box.x - 6, Y(v) + 4, FormatTick(v, ty.step), 11, "end");
     }
     svg->Text(box.x + box.w / 2, box.y + box.h + 34, xlabel, 12, "middle");
-    svg->Text(box.x - 52, box.y + box.h / 2, ylabel, 12, "middle",
-              fmt::format("transform=\"rotate(-90 {:.1f} {:.1f})\"", box.x - 52,
-                          box.y + box.h / 2));
+    svg->Text(
+        box.x - 52, box.y + box.h / 2, ylabel, 12, "middle",
+        fmt::format("transform=\"rotate(-90 {:.1f} {:.1f})\"", box.x - 52, box.y + box.h / 2));
   }
 };
 
@@ -126,12 +126,12 @@ std::string RenderErrorPlotSvg(const ErrorPlotInput& in) {
   const bool timed = est.has_timestamps();
   std::vector<double> xs(m);
   for (size_t k = 0; k < m; ++k) {
-    xs[k] = timed ? (est.t_ns[s.indices[k]] - est.t_ns[0]) * 1e-9
-                  : static_cast<double>(s.indices[k]);
+    xs[k] =
+        timed ? (est.t_ns[s.indices[k]] - est.t_ns[0]) * 1e-9 : static_cast<double>(s.indices[k]);
   }
   const double x_max = std::max(xs.back(), xs.front() + 1e-9);
-  const Axes err{{600, 70, 460, 400}, std::min(0.0, xs.front()), x_max, 0.0,
-                 std::max(emax * 1.08, 1e-12)};
+  const Axes err{
+      {600, 70, 460, 400}, std::min(0.0, xs.front()), x_max, 0.0, std::max(emax * 1.08, 1e-12)};
   err.Draw(&svg, timed ? "time (s)" : "pose index",
            in.unit.empty() ? "error" : fmt::format("error ({})", in.unit));
   pts.clear();

@@ -10,9 +10,9 @@
 namespace optinav::report {
 
 struct ErrorPlotInput {
-  std::string title;       // e.g. "APE w.r.t. translation part (m)"
-  std::string subtitle;    // e.g. "SE(3) Umeyama alignment, 4541 pairs"
-  std::string unit;        // error unit for the axis ("" for unit-less)
+  std::string title;                // e.g. "APE w.r.t. translation part (m)"
+  std::string subtitle;             // e.g. "SE(3) Umeyama alignment, 4541 pairs"
+  std::string unit;                 // error unit for the axis ("" for unit-less)
   const Trajectory* ref = nullptr;  // synchronized reference
   const Trajectory* est = nullptr;  // synchronized, aligned estimate
   const eval::ErrorSeries* series = nullptr;

@@ -1,8 +1,8 @@
 #include "optinav/report/trajectory_plot.h"
 
-#include <gtest/gtest.h>
-
 #include <filesystem>
+
+#include <gtest/gtest.h>
 
 #include "optinav/io/text_parse.h"
 #include "optinav/report/svg.h"
@@ -23,8 +23,9 @@ struct Fixture {
   explicit Fixture(int n) {
     for (int i = 0; i < n; ++i) {
       const double a = i * 0.01;
-      ref.Add(int64_t{i} * 50'000'000, Rigid3d(Eigen::Quaterniond::Identity(),
-                                               Eigen::Vector3d(10 * std::cos(a), 10 * std::sin(a), 0)));
+      ref.Add(int64_t{i} * 50'000'000,
+              Rigid3d(Eigen::Quaterniond::Identity(),
+                      Eigen::Vector3d(10 * std::cos(a), 10 * std::sin(a), 0)));
       est.Add(int64_t{i} * 50'000'000,
               Rigid3d(Eigen::Quaterniond::Identity(),
                       Eigen::Vector3d(10 * std::cos(a) + 0.001 * i, 10 * std::sin(a), 0)));
@@ -32,8 +33,12 @@ struct Fixture {
     series = eval::ComputeApe(ref, est, eval::PoseRelation::kTranslation);
   }
   ErrorPlotInput Input() const {
-    return {.title = "APE <test> & more", .subtitle = "sub", .unit = "m", .ref = &ref,
-            .est = &est, .series = &series};
+    return {.title = "APE <test> & more",
+            .subtitle = "sub",
+            .unit = "m",
+            .ref = &ref,
+            .est = &est,
+            .series = &series};
   }
 };
 

@@ -2,11 +2,11 @@
 // Accepts OpenCV/EuRoC style files that begin with the "%YAML:1.0" directive.
 #pragma once
 
-#include <yaml-cpp/yaml.h>
-
 #include <optional>
 #include <string>
 #include <vector>
+
+#include <yaml-cpp/yaml.h>
 
 #include "optinav/util/error.h"
 
@@ -35,8 +35,8 @@ T YamlGet(const YamlFile& file, const YAML::Node& node, const std::string& key) 
   try {
     return value.as<T>();
   } catch (const YAML::Exception& e) {
-    throw Error("cannot convert value '" + (value.IsScalar() ? value.Scalar() : std::string("<non-scalar>")) +
-                    "'",
+    throw Error("cannot convert value '" +
+                    (value.IsScalar() ? value.Scalar() : std::string("<non-scalar>")) + "'",
                 internal::YamlContext(file, value, key));
   }
 }

@@ -41,11 +41,11 @@ namespace internal {
 }  // namespace optinav
 
 // Programmer invariant: aborts (never throws) with the failed expression and its location.
-#define OPTINAV_CHECK(cond)                                                  \
-  do {                                                                       \
+#define OPTINAV_CHECK(cond)                                                       \
+  do {                                                                            \
     if (!(cond)) ::optinav::internal::CheckFailed(#cond, __FILE__, __LINE__, ""); \
   } while (false)
-#define OPTINAV_CHECK_MSG(cond, msg)                                           \
-  do {                                                                         \
+#define OPTINAV_CHECK_MSG(cond, msg)                                                 \
+  do {                                                                               \
     if (!(cond)) ::optinav::internal::CheckFailed(#cond, __FILE__, __LINE__, (msg)); \
   } while (false)

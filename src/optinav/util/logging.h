@@ -2,9 +2,9 @@
 // messages go to stderr (stdout is for results), verbosity set once by the command line.
 #pragma once
 
-#include <spdlog/spdlog.h>
-
 #include <string>
+
+#include <spdlog/spdlog.h>
 
 namespace optinav {
 

@@ -1,10 +1,10 @@
 #include "optinav/util/progress.h"
 
-#include <unistd.h>
-
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+
+#include <unistd.h>
 
 namespace optinav {
 

@@ -1,12 +1,11 @@
 #include "optinav/util/queue.h"
 
-#include <gtest/gtest.h>
-
-#include <unistd.h>
-
 #include <cstdlib>
 #include <thread>
 #include <vector>
+
+#include <gtest/gtest.h>
+#include <unistd.h>
 
 #include "optinav/util/progress.h"
 

@@ -1,10 +1,10 @@
 // Shared GoogleTest main and the helpers of testing.h.
-#include <gtest/gtest.h>
-
 #include <atomic>
 #include <cstdlib>
 #include <fstream>
 #include <random>
+
+#include <gtest/gtest.h>
 
 #include "optinav/util/logging.h"
 #include "optinav/util/testing.h"
@@ -24,9 +24,9 @@ std::filesystem::path SharedDataDir() {
 std::filesystem::path MakeTempDir(const std::string& prefix) {
   static std::atomic<int> counter{0};
   std::random_device rd;
-  const auto dir = std::filesystem::temp_directory_path() /
-                   ("optinav_" + prefix + "_" + std::to_string(rd()) + "_" +
-                    std::to_string(counter++));
+  const auto dir =
+      std::filesystem::temp_directory_path() /
+      ("optinav_" + prefix + "_" + std::to_string(rd()) + "_" + std::to_string(counter++));
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   return dir;
