@@ -93,6 +93,30 @@ struct OcPeak {
 
 }  // namespace
 
+namespace {
+
+// The bookkeeping of one localization attempt: method, stage timing and the two exits.
+struct Attempt {
+  explicit Attempt(const char* method) { result.method = method; }
+  // Ends without a fix, saying why.
+  LocateResult Fail(std::string reason) {
+    result.reason = std::move(reason);
+    result.times.total_ms = total.ElapsedSeconds() * 1e3;
+    return result;
+  }
+  // Ends with the fix filled into `result`.
+  LocateResult Done() {
+    result.localized = true;
+    result.reason = "ok";
+    result.times.total_ms = total.ElapsedSeconds() * 1e3;
+    return result;
+  }
+  LocateResult result;
+  Timer total, stage;
+};
+
+}  // namespace
+
 std::string LocateOptions::Check() const {
   if (!(ratio > 0 && ratio <= 1)) return "ratio must be in (0, 1]";
   if (top_n_per_tile < 4) return "top_n_per_tile must be >= 4";
@@ -242,19 +266,11 @@ LocateResult Locator::Locate(const cv::Mat& frame, const Prior& prior) {
 LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior) {
   Impl& im = *impl_;
   const MapDatabase& db = im.db;
-  LocateResult r;
-  r.method = "features";
-  Timer total, stage;
-  // Ends the attempt without a fix, saying why.
-  auto fail = [&](std::string reason) {
-    r.reason = std::move(reason);
-    r.times.total_ms = total.ElapsedSeconds() * 1e3;
-    return r;
-  };
+  Attempt a("features");
+  LocateResult& r = a.result;
+  Timer& stage = a.stage;
   const cv::Mat gray = ToGray(frame);
-  if (gray.empty()) {
-    return fail("empty frame");
-  }
+  if (gray.empty()) return a.Fail("empty frame");
   // Bring the frame to the resolution the map's features were taken at.
   const double frame_gsd = im.FrameGsd(gray, prior);
   double to_feature = frame_gsd / db.feature_gsd_m;
@@ -268,7 +284,7 @@ LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior)
   const features::Features ff = im.extractor->Extract(work);
   r.times.extraction_ms = stage.ElapsedSeconds() * 1e3;
   if (ff.size() < 8) {
-    return fail(
+    return a.Fail(
         fmt::format("too few features in the frame ({}): textureless, dark or blurred", ff.size()));
   }
   stage.Restart();
@@ -292,7 +308,7 @@ LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior)
       if (best < 1e300) by_distance.emplace_back(best, t.index);
     }
     if (by_distance.empty()) {
-      return fail("the prior lies outside the map");
+      return a.Fail("the prior lies outside the map");
     }
     std::sort(by_distance.begin(), by_distance.end());
     for (size_t i = 0;
@@ -304,7 +320,7 @@ LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior)
     // descriptors, then the best tiles and their neighbours are verified geometrically.
     std::call_once(im.index_once, [&] { im.BuildIndex(); });
     if (im.all_descriptors.empty()) {
-      return fail("the map has no features");
+      return a.Fail("the map has no features");
     }
     const cv::Mat query =
         ff.descriptors.rowRange(0, std::min(ff.descriptors.rows, im.options.global_query_features));
@@ -333,7 +349,7 @@ LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior)
     }
     if (candidates.empty()) {
       r.times.matching_ms = stage.ElapsedSeconds() * 1e3;
-      return fail("no map tile shares features with the frame");
+      return a.Fail("no map tile shares features with the frame");
     }
   }
   r.candidate_tiles = candidates;
@@ -382,14 +398,14 @@ LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior)
   r.inliers = h.inliers;
   r.inlier_ratio = h.inlier_ratio;
   if (!h.ok) {
-    return fail(h.reason);
+    return a.Fail(h.reason);
   }
   const cv::Point2d c(gray.cols / 2.0, gray.rows / 2.0);
   const cv::Point2d mc = features::ApplyHomography(h.H, c);
   const cv::Point2d up = features::ApplyHomography(h.H, c + cv::Point2d(0, -gray.rows / 4.0));
   r.map_px = {mc.x, mc.y};
   if (mc.x < 0 || mc.y < 0 || mc.x > db.width || mc.y > db.height) {
-    return fail("the frame centre maps outside the map");
+    return a.Fail("the frame centre maps outside the map");
   }
   const cv::Matx22d j = features::HomographyJacobian(h.H, c);
   r.scale = std::sqrt(std::abs(j(0, 0) * j(1, 1) - j(0, 1) * j(1, 0)));
@@ -398,41 +414,30 @@ LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior)
   r.heading_deg = PixelDirectionToHeading({up.x - mc.x, up.y - mc.y});
   r.crs_xy = db.transform.PixelToCrs(r.map_px);
   r.latlon = im.crs.ToLatLon(r.crs_xy);
-  r.localized = true;
-  r.reason = "ok";
   // Confidence grows with inliers (saturating) and their share of the matches.
   r.confidence = std::min(1.0, h.inliers / 60.0) * std::min(1.0, 0.5 + h.inlier_ratio);
-  r.times.total_ms = total.ElapsedSeconds() * 1e3;
-  return r;
+  return a.Done();
 }
 
 LocateResult Locator::LocateByOrientationCorrelation(const cv::Mat& frame, const Prior& prior) {
   Impl& im = *impl_;
   const MapDatabase& db = im.db;
-  LocateResult r;
-  r.method = "orientation-correlation";
-  Timer total, stage;
-  // Ends the attempt without a fix, saying why.
-  auto fail = [&](std::string reason) {
-    r.reason = std::move(reason);
-    r.times.total_ms = total.ElapsedSeconds() * 1e3;
-    return r;
-  };
+  Attempt a("orientation-correlation");
+  LocateResult& r = a.result;
+  Timer& stage = a.stage;
   const cv::Mat gray = ToGray(frame);
-  if (gray.empty()) {
-    return fail("empty frame");
-  }
+  if (gray.empty()) return a.Fail("empty frame");
   if (!prior.position) {
-    return fail("orientation correlation needs a prior position");
+    return a.Fail("orientation correlation needs a prior position");
   }
   const geo::GeoRaster* ortho = im.Ortho();
   if (!ortho) {
-    return fail("orthophoto unavailable for orientation correlation: " + im.ortho_error);
+    return a.Fail("orthophoto unavailable for orientation correlation: " + im.ortho_error);
   }
   const Eigen::Vector2d c_px = LatLonToPixel(*prior.position);
   if (c_px.x() < -db.width * 0.1 || c_px.y() < -db.height * 0.1 || c_px.x() > db.width * 1.1 ||
       c_px.y() > db.height * 1.1) {
-    return fail("the prior lies outside the map");
+    return a.Fail("the prior lies outside the map");
   }
   const double frame_gsd = im.FrameGsd(gray, prior);
   const double frame_extent_m = std::max(gray.cols, gray.rows) * frame_gsd;
@@ -576,7 +581,7 @@ LocateResult Locator::LocateByOrientationCorrelation(const cv::Mat& frame, const
   }
   const OcPeak c = correlate(coarse, headings, c_px, prior.radius_m / db.map_gsd_m);
   if (c.score <= 0) {
-    return fail("no gradient structure to correlate (textureless frame or map)");
+    return a.Fail("no gradient structure to correlate (textureless frame or map)");
   }
   // Refine at twice the resolution around the coarse peak and heading.
   const OcPeak f = correlate(fine, {c.heading}, {c.x, c.y}, 2.5 * coarse_gsd / db.map_gsd_m);
@@ -590,15 +595,12 @@ LocateResult Locator::LocateByOrientationCorrelation(const cv::Mat& frame, const
   r.scale = frame_gsd / db.map_gsd_m;
   r.altitude_m = prior.altitude_m.value_or(db.options.altitude_m);
   if (peak_ratio < im.options.oc_min_peak_ratio) {
-    return fail(fmt::format("correlation peak not distinctive (ratio {:.2f} < {:.2f})", peak_ratio,
-                            im.options.oc_min_peak_ratio));
+    return a.Fail(fmt::format("correlation peak not distinctive (ratio {:.2f} < {:.2f})",
+                              peak_ratio, im.options.oc_min_peak_ratio));
   }
   r.crs_xy = db.transform.PixelToCrs(r.map_px);
   r.latlon = im.crs.ToLatLon(r.crs_xy);
-  r.localized = true;
-  r.reason = "ok";
-  r.times.total_ms = total.ElapsedSeconds() * 1e3;
-  return r;
+  return a.Done();
 }
 
 }  // namespace optinav::maploc
