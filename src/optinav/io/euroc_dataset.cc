@@ -226,4 +226,32 @@ EurocDataset OpenEurocDataset(const std::string& dir, const EurocOpenOptions& op
   return ds;
 }
 
+camera::PinholeCamera ToPinholeCamera(const CameraCalibration& c) {
+  camera::PinholeCamera cam;
+  cam.width = c.width;
+  cam.height = c.height;
+  cam.fx = c.fx;
+  cam.fy = c.fy;
+  cam.cx = c.cx;
+  cam.cy = c.cy;
+  cam.distortion = camera::ParseDistortionModel(c.distortion_model);
+  if (cam.distortion != camera::DistortionModel::kNone) {
+    if (c.distortion.size() != 4) {
+      throw Error("distortion model " + c.distortion_model + " needs 4 coefficients, got " +
+                  std::to_string(c.distortion.size()));
+    }
+    for (int i = 0; i < 4; ++i) cam.coeffs[i] = c.distortion[i];
+  }
+  cam.Validate();
+  return cam;
+}
+
+camera::StereoRig ToStereoRig(const CameraCalibration& left, const CameraCalibration& right) {
+  camera::StereoRig rig;
+  rig.left = ToPinholeCamera(left);
+  rig.right = ToPinholeCamera(right);
+  rig.right_from_left = right.body_from_cam.Inverse() * left.body_from_cam;
+  return rig;
+}
+
 }  // namespace optinav::io

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "optinav/camera/camera.h"
 #include "optinav/geometry/lie.h"
 #include "optinav/util/error.h"
 
@@ -79,6 +80,10 @@ struct EurocOpenOptions {
 EurocDataset OpenEurocDataset(const std::string& dir, const EurocOpenOptions& options = {});
 
 CameraCalibration ReadCameraCalibration(const std::string& sensor_yaml);
+// The camera model of a calibration (intrinsics, distortion); throws Error when it is invalid.
+camera::PinholeCamera ToPinholeCamera(const CameraCalibration& calibration);
+// The stereo rig of two calibrations: right_from_left = (body_from_right)^-1 * body_from_left.
+camera::StereoRig ToStereoRig(const CameraCalibration& left, const CameraCalibration& right);
 ImuCalibration ReadImuCalibration(const std::string& sensor_yaml);
 // cam data.csv: "timestamp [ns], filename"; paths resolved against <cam>/data/.
 std::vector<ImageEntry> ReadImageList(const std::string& data_csv, const std::string& image_dir,

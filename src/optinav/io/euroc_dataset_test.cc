@@ -57,6 +57,19 @@ TEST(EurocDataset, OpensRealV101Clip) {
             ds.mav0_dir);
 }
 
+TEST(EurocDataset, RealClipStereoRig) {
+  const EurocDataset ds = OpenEurocDataset(Micro().string(), {.check_images_exist = false});
+  const camera::StereoRig rig = ToStereoRig(ds.cam0->calibration, ds.cam1->calibration);
+  // EuRoC's stereo baseline is about 11 cm, the right camera to the +x of the left one.
+  EXPECT_NEAR(rig.Baseline(), 0.110, 0.002);
+  EXPECT_LT(rig.right_from_left.translation.x(), -0.10);
+  EXPECT_LT(RotationAngle(rig.right_from_left.rotation), 0.02);  // 0.82 deg in V1_01
+  EXPECT_EQ(rig.left.distortion, camera::DistortionModel::kRadialTangential);
+  CameraCalibration bad = ds.cam0->calibration;
+  bad.fx = 0;
+  EXPECT_THROW(ToPinholeCamera(bad), Error);
+}
+
 TEST(EurocDataset, ReadsImuAt200Hz) {
   const auto imu = ReadImuCsv((Micro() / "mav0" / "imu0" / "data.csv").string());
   ASSERT_GT(imu.size(), 1000u);
