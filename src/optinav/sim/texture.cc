@@ -149,7 +149,10 @@ cv::Mat MakeSurfaceImage(SurfaceKind kind, uint64_t seed) {
       const bool soil = kind == SurfaceKind::kSoil;
       cv::Mat n = FractalNoise(kSize, seed, 2);
       cv::Mat img =
-          soil ? Blend(n, {40, 75, 95}, {70, 130, 110}) : Blend(n, {30, 90, 45}, {70, 150, 95});
+          soil ? Blend(n, {25, 55, 75}, {85, 150, 125}) : Blend(n, {15, 60, 25}, {90, 180, 120});
+      // Dark clumps, dry tufts and bare patches: structure at several scales for trackers.
+      Speckle(img, 600, 3, 9, soil ? cv::Scalar(20, 40, 50) : cv::Scalar(10, 35, 15), 12, rng);
+      Speckle(img, 350, 3, 8, soil ? cv::Scalar(120, 150, 170) : cv::Scalar(90, 170, 190), 25, rng);
       std::uniform_int_distribution<int> px(0, kSize - 1), len(4, 12), d(-3, 3);
       for (int i = 0; i < 3000; ++i) {  // blades
         const cv::Point p(px(rng), px(rng));
@@ -157,7 +160,7 @@ cv::Mat MakeSurfaceImage(SurfaceKind kind, uint64_t seed) {
         cv::line(img, p, p + cv::Point(d(rng), -len(rng)), {30.0 + 5 * d(rng), double(g + 50), 60},
                  1, cv::LINE_AA);
       }
-      Speckle(img, soil ? 700 : 150, 2, soil ? 7 : 4,
+      Speckle(img, soil ? 900 : 500, 2, soil ? 7 : 5,
               soil ? cv::Scalar(100, 115, 125) : cv::Scalar(60, 100, 120), 35, rng);
       return img;
     }

@@ -93,14 +93,14 @@ const ParticleModel* ModelFor(WeatherKind kind) {
       {{250, 250, 250}, {240, 242, 245}, {235, 238, 240}, {255, 255, 255}},
       0};
   static const ParticleModel kLeaves{Shape::kLeaf,
-                                     0.08,
+                                     0.25,
                                      4,
                                      20,
                                      {0.8, 0.4, -1.2},
                                      0.6,
                                      0.3,
-                                     0.035,
-                                     0.06,
+                                     0.05,
+                                     0.09,
                                      0.95,
                                      {{20, 90, 200}, {15, 50, 160}, {30, 140, 220}, {25, 60, 110}},
                                      0};
@@ -366,12 +366,12 @@ double WeatherVisibilityM(const WeatherSpec& spec) {
   return HazeFor(spec).visibility_m;
 }
 
-void ApplyWeather(cv::Mat& bgr, const cv::Mat& depth_m, const camera::PinholeCamera& camera,
-                  const Rigid3d& world_from_cam, int64_t t_ns, const WeatherSpec& spec,
-                  uint64_t seed) {
+namespace {
+
+void CheckInputs(const cv::Mat& bgr, const cv::Mat& depth_m, const camera::PinholeCamera& camera) {
   if (bgr.type() != CV_8UC3 || depth_m.type() != CV_32F || bgr.size() != depth_m.size()) {
     throw Error(
-        fmt::format("ApplyWeather needs a CV_8UC3 image and a CV_32F depth of the same "
+        fmt::format("weather needs a CV_8UC3 image and a CV_32F depth of the same "
                     "size (got {}x{} type {}, {}x{} type {})",
                     bgr.cols, bgr.rows, bgr.type(), depth_m.cols, depth_m.rows, depth_m.type()),
         {.field = "weather"});
@@ -381,15 +381,36 @@ void ApplyWeather(cv::Mat& bgr, const cv::Mat& depth_m, const camera::PinholeCam
                             camera.width, camera.height),
                 {.field = "weather"});
   }
+}
+
+}  // namespace
+
+void ApplyWeatherHaze(cv::Mat& bgr, const cv::Mat& depth_m, const camera::PinholeCamera& camera,
+                      const WeatherSpec& spec) {
+  CheckInputs(bgr, depth_m, camera);
   if (spec.IsClear()) return;
   const Haze hz = HazeFor(spec);
   if (std::isfinite(hz.visibility_m) || hz.contrast_loss > 0 || hz.dimming > 0) {
     ApplyHaze(bgr, depth_m, camera, hz);
   }
+}
+
+void DrawWeatherParticles(cv::Mat& bgr, const cv::Mat& depth_m, const camera::PinholeCamera& camera,
+                          const Rigid3d& world_from_cam, int64_t t_ns, const WeatherSpec& spec,
+                          uint64_t seed) {
+  CheckInputs(bgr, depth_m, camera);
+  if (spec.IsClear()) return;
   if (const ParticleModel* m = ModelFor(spec.kind)) {
     DrawParticles(bgr, depth_m, camera, world_from_cam, t_ns * 1e-9, *m,
                   std::clamp(spec.intensity, 0.0, 1.0), seed, spec.kind);
   }
+}
+
+void ApplyWeather(cv::Mat& bgr, const cv::Mat& depth_m, const camera::PinholeCamera& camera,
+                  const Rigid3d& world_from_cam, int64_t t_ns, const WeatherSpec& spec,
+                  uint64_t seed) {
+  ApplyWeatherHaze(bgr, depth_m, camera, spec);
+  DrawWeatherParticles(bgr, depth_m, camera, world_from_cam, t_ns, spec, seed);
 }
 
 void ApplySurfaceWeather(cv::Mat& tex, SurfaceRole role, const WeatherSpec& spec, uint64_t seed) {

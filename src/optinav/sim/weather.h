@@ -89,6 +89,15 @@ void ApplyWeather(cv::Mat& bgr, const cv::Mat& depth_m, const camera::PinholeCam
                   const Rigid3d& world_from_cam, int64_t t_ns, const WeatherSpec& spec,
                   uint64_t seed);
 
+// The two halves of ApplyWeather (same arguments and checks), for callers that want one only:
+// the haze (fog, dust, rain and snow attenuation, dust contrast loss, rain dimming) and the
+// particles.
+void ApplyWeatherHaze(cv::Mat& bgr, const cv::Mat& depth_m, const camera::PinholeCamera& camera,
+                      const WeatherSpec& spec);
+void DrawWeatherParticles(cv::Mat& bgr, const cv::Mat& depth_m, const camera::PinholeCamera& camera,
+                          const Rigid3d& world_from_cam, int64_t t_ns, const WeatherSpec& spec,
+                          uint64_t seed);
+
 // The part of a scene surface that weather acts on.
 enum class SurfaceRole { kRoad, kGround, kRoof, kOther };
 // Changes a surface texture image (CV_8UC3) for the weather: rain wets roads and ground,

@@ -404,7 +404,7 @@ World MakeTerrain(const WorldOptions& o) {
   for (float x = gbox.min().x(); x < gbox.max().x(); x += cell) {
     for (float y = gbox.min().y(); y < gbox.max().y(); y += cell) {
       auto p = [&](float px, float py) { return Vec3(px, py, static_cast<float>(h(px, py))); };
-      auto uv = [&](float px, float py) { return Vec2(px / 7, -py / 7); };
+      auto uv = [&](float px, float py) { return Vec2(px / 5, -py / 5); };
       const float patch = std::sin(x / 17 + 1.3f * std::sin(y / 11)) + std::cos(y / 13 - x / 29);
       const float z = static_cast<float>(h(x, y));
       const int tex = z > 30 ? rock : (patch > 0.4f ? soil : grass);
