@@ -115,7 +115,17 @@ void Renderer::RenderPinhole(const Pinhole& cam, const Rigid3d& cam_from_world, 
 
   std::vector<Setup> setups;
   setups.reserve(20000);
+  // Chunks front to back: the depth test then rejects most hidden pixels before they are
+  // textured. The order depends on the pose only, so the output stays deterministic.
+  std::vector<std::pair<float, const WorldChunk*>> order;
+  order.reserve(world_.chunks.size());
   for (const WorldChunk& chunk : world_.chunks) {
+    order.emplace_back(chunk.box.exteriorDistance(centre), &chunk);
+  }
+  std::stable_sort(order.begin(), order.end(),
+                   [](const auto& a, const auto& b) { return a.first < b.first; });
+  for (const auto& [distance, chunk_ptr] : order) {
+    const WorldChunk& chunk = *chunk_ptr;
     bool culled = false;
     for (int k = 0; k < 5 && !culled; ++k) {
       bool all_out = true;
@@ -184,17 +194,7 @@ void Renderer::RenderPinhole(const Pinhole& cam, const Rigid3d& cam_from_world, 
     for (int band = range.start; band < range.end; ++band) {
       const int y0 = band * kBandRows, y1 = std::min(height, y0 + kBandRows);
       for (int y = y0; y < y1; ++y) {
-        auto* row = bgr->ptr<uint8_t>(y);
-        auto* zrow = inv_depth->ptr<float>(y);
-        for (int x = 0; x < width; ++x) {
-          const Eigen::Vector3f d = d0 + static_cast<float>(x) * dx + static_cast<float>(y) * dy;
-          const float e = std::clamp(d.z() / d.norm() * 2.5f, 0.0f, 1.0f);
-          const Eigen::Vector3f c = sky_h + e * (sky_z - sky_h);
-          row[3 * x] = static_cast<uint8_t>(c[0]);
-          row[3 * x + 1] = static_cast<uint8_t>(c[1]);
-          row[3 * x + 2] = static_cast<uint8_t>(c[2]);
-          zrow[x] = 0;
-        }
+        std::fill_n(inv_depth->ptr<float>(y), width, 0.0f);
       }
       for (uint32_t idx : bins[band]) {
         const Setup& s = setups[idx];
@@ -241,6 +241,20 @@ void Renderer::RenderPinhole(const Pinhole& cam, const Rigid3d& cam_from_world, 
               row[3 * x + c] = static_cast<uint8_t>(value >= 255.f ? 255.f : value);
             }
           }
+        }
+      }
+      // Sky where no triangle was drawn.
+      for (int y = y0; y < y1; ++y) {
+        auto* row = bgr->ptr<uint8_t>(y);
+        const float* zrow = inv_depth->ptr<float>(y);
+        for (int x = 0; x < width; ++x) {
+          if (zrow[x] > 0) continue;
+          const Eigen::Vector3f d = d0 + static_cast<float>(x) * dx + static_cast<float>(y) * dy;
+          const float e = std::clamp(d.z() / d.norm() * 2.5f, 0.0f, 1.0f);
+          const Eigen::Vector3f c = sky_h + e * (sky_z - sky_h);
+          row[3 * x] = static_cast<uint8_t>(c[0]);
+          row[3 * x + 1] = static_cast<uint8_t>(c[1]);
+          row[3 * x + 2] = static_cast<uint8_t>(c[2]);
         }
       }
     }

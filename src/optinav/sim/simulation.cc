@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <future>
 #include <mutex>
 #include <thread>
 
@@ -308,12 +309,9 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
       const int64_t t = frame_times[k];
       const BodyState st = traj.At(t);
       const Rigid3d world_from_left = st.world_from_body * rig.body_from_left;
-      const Rigid3d world_from_right = st.world_from_body * rig.body_from_right;
-      cv::Mat left, right, depth_l, depth_r;
-      renderer.Render(rig.left, world_from_left, &left, &depth_l);
-      renderer.Render(rig.right, world_from_right, &right, &depth_r);
-      ApplyWeather(left, depth_l, rig.left, world_from_left, t, options.weather, options.seed);
-      ApplyWeather(right, depth_r, rig.right, world_from_right, t, options.weather, options.seed);
+      cv::Mat left, right;
+      RenderStereo(renderer, rig, st.world_from_body, t, options.weather, options.seed, &left,
+                   &right);
       std::string lname, rname;
       if (euroc) {
         lname = rname = fmt::format("{}.png", t);
@@ -429,6 +427,21 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
   summary.wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
   return summary;
+}
+
+void RenderStereo(const Renderer& renderer, const SensorRig& rig, const Rigid3d& world_from_body,
+                  int64_t t_ns, const WeatherSpec& weather, uint64_t seed, cv::Mat* left,
+                  cv::Mat* right) {
+  auto one = [&](const camera::PinholeCamera& cam, const Rigid3d& body_from_cam, cv::Mat* img) {
+    const Rigid3d world_from_cam = world_from_body * body_from_cam;
+    cv::Mat depth;
+    renderer.Render(cam, world_from_cam, img, &depth);
+    ApplyWeather(*img, depth, cam, world_from_cam, t_ns, weather, seed);
+  };
+  auto right_done =
+      std::async(std::launch::async, [&] { one(rig.right, rig.body_from_right, right); });
+  one(rig.left, rig.body_from_left, left);
+  right_done.get();
 }
 
 std::vector<SuiteEntry> WeatherSuite() {

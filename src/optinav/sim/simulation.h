@@ -57,6 +57,13 @@ struct SimulationSummary {
 SimulationSummary RunSimulation(const SimulationOptions& options,
                                 const std::function<void(size_t, size_t)>& progress = {});
 
+class Renderer;
+// One stereo pair with weather at body pose `world_from_body` and time t_ns: the two cameras
+// render (and get their weather) concurrently.
+void RenderStereo(const Renderer& renderer, const SensorRig& rig, const Rigid3d& world_from_body,
+                  int64_t t_ns, const WeatherSpec& weather, uint64_t seed, cv::Mat* left,
+                  cv::Mat* right);
+
 // The weather document's 36 sequences: for `urban` and `terrain`, default, rain, snow, leaves
 // (at 50 %), fog and dust at 25/50/75/100 %, and for urban also road wetness/snow/leaves at
 // 25/50/75/100 %. Names like "urban_fog_50".

@@ -31,17 +31,18 @@ void Texture::Sample(double u, double v, float lod, uint8_t bgr[3]) const {
   k = std::min(k, static_cast<int>(levels_.size()) - 1);
   const cv::Mat& img = levels_[k];
   const int n = img.cols, mask = n - 1;
-  const double x = u * n - 0.5, y = v * n - 0.5;
-  const double fx = std::floor(x), fy = std::floor(y);
-  const int ax = static_cast<int>(static_cast<int64_t>(fx) & mask);
-  const int ay = static_cast<int>(static_cast<int64_t>(fy) & mask);
-  const int bx = (ax + 1) & mask, by = (ay + 1) & mask;
-  const int wx = static_cast<int>((x - fx) * 256), wy = static_cast<int>((y - fy) * 256);
+  // Wrap first (in double: u may be hundreds of repeats), then work in float.
+  const float x = static_cast<float>((u - std::floor(u)) * n) - 0.5f;
+  const float y = static_cast<float>((v - std::floor(v)) * n) - 0.5f;
+  const int ix = static_cast<int>(x + 1.0f) - 1, iy = static_cast<int>(y + 1.0f) - 1;  // floor
+  const int ax = ix & mask, ay = iy & mask, bx = (ix + 1) & mask, by = (iy + 1) & mask;
+  const int wx = static_cast<int>((x - ix) * 256.0f), wy = static_cast<int>((y - iy) * 256.0f);
   const uint8_t* r0 = img.ptr<uint8_t>(ay);
   const uint8_t* r1 = img.ptr<uint8_t>(by);
+  const uint8_t *p00 = r0 + 3 * ax, *p01 = r0 + 3 * bx, *p10 = r1 + 3 * ax, *p11 = r1 + 3 * bx;
   for (int c = 0; c < 3; ++c) {
-    const int top = r0[3 * ax + c] * (256 - wx) + r0[3 * bx + c] * wx;
-    const int bot = r1[3 * ax + c] * (256 - wx) + r1[3 * bx + c] * wx;
+    const int top = p00[c] * (256 - wx) + p01[c] * wx;
+    const int bot = p10[c] * (256 - wx) + p11[c] * wx;
     bgr[c] = static_cast<uint8_t>((top * (256 - wy) + bot * wy + (1 << 15)) >> 16);
   }
 }

@@ -38,9 +38,9 @@ uint64_t SplitMix(uint64_t x) {
 struct HashRng {
   uint64_t s;
   double Uniform() { return (SplitMix(s++) >> 11) * (1.0 / 9007199254740992.0); }
-  // Poisson by inversion; fine for the small means used here.
-  int Poisson(double mean) {
-    const double l = std::exp(-mean);
+  // Poisson by inversion; exp_minus_mean = exp(-mean), fine for the small means used here.
+  int Poisson(double exp_minus_mean) {
+    const double l = exp_minus_mean;
     double p = Uniform();
     int k = 0;
     while (p > l && k < 1000) {
@@ -160,14 +160,45 @@ void DrawParticles(cv::Mat& bgr, const cv::Mat& depth, const camera::PinholeCame
   const double mean = m.density * intensity * m.cell_m * m.cell_m * m.cell_m;
   const double f = 0.5 * (cam.fx + cam.fy);
   const int w = bgr.cols, h = bgr.rows;
+  const double exp_minus_mean = std::exp(-mean);
+  // Cells wholly behind the camera, outside the field of view or out of reach are skipped: the
+  // half-angles of the view from the image border (distortion included), with a margin.
+  double tan_x = 0, tan_y = 0;
+  for (const Eigen::Vector2d& b :
+       {Eigen::Vector2d(0, 0), Eigen::Vector2d(w - 1, 0), Eigen::Vector2d(0, h - 1),
+        Eigen::Vector2d(w - 1, h - 1), Eigen::Vector2d((w - 1) / 2.0, 0),
+        Eigen::Vector2d((w - 1) / 2.0, h - 1), Eigen::Vector2d(0, (h - 1) / 2.0),
+        Eigen::Vector2d(w - 1, (h - 1) / 2.0)}) {
+    const Eigen::Vector2d n = cam.PixelToNormalized(b);
+    tan_x = std::max(tan_x, std::abs(n.x()));
+    tan_y = std::max(tan_y, std::abs(n.y()));
+  }
+  tan_x *= 1.1;
+  tan_y *= 1.1;
+  const double cell_radius =
+      0.87 * m.cell_m + m.sway_m + m.velocity.norm() * m.exposure_s + m.radius_max + 0.05;
+  const Eigen::Matrix3d r_cw = cam_from_world.rotation.toRotationMatrix();
+  auto cell_visible = [&](int64_t ix, int64_t iy, int64_t iz) {
+    const Eigen::Vector3d centre_w =
+        Eigen::Vector3d(ix + 0.5, iy + 0.5, iz + 0.5) * m.cell_m + offset - centre;
+    if (centre_w.norm() > m.reach_m + cell_radius) return false;
+    const Eigen::Vector3d pc = r_cw * centre_w;
+    if (pc.z() < -cell_radius) return false;
+    if (std::abs(pc.x()) - tan_x * pc.z() > cell_radius * std::sqrt(1 + tan_x * tan_x))
+      return false;
+    if (std::abs(pc.y()) - tan_y * pc.z() > cell_radius * std::sqrt(1 + tan_y * tan_y))
+      return false;
+    return true;
+  };
   for (int64_t ix = cx - reach_cells; ix <= cx + reach_cells; ++ix) {
     for (int64_t iy = cy - reach_cells; iy <= cy + reach_cells; ++iy) {
       for (int64_t iz = cz - reach_cells; iz <= cz + reach_cells; ++iz) {
+        if (!cell_visible(ix, iy, iz)) continue;
         HashRng rng{
             SplitMix(SplitMix(SplitMix(static_cast<uint64_t>(ix) ^ (seed * 0x2545F4914F6CDD1Dull)) +
                               static_cast<uint64_t>(iy)) +
                      static_cast<uint64_t>(iz) * 0x9E3779B1ull + static_cast<uint64_t>(kind))};
-        const int count = rng.Poisson(mean);
+        const int count = rng.Poisson(exp_minus_mean);
         for (int k = 0; k < count; ++k) {
           const Eigen::Vector3d q((ix + rng.Uniform()) * m.cell_m, (iy + rng.Uniform()) * m.cell_m,
                                   (iz + rng.Uniform()) * m.cell_m);
@@ -269,27 +300,30 @@ Haze HazeFor(const WeatherSpec& s) {
 void ApplyHaze(cv::Mat& bgr, const cv::Mat& depth, const camera::PinholeCamera& cam,
                const Haze& hz) {
   const bool has_fog = std::isfinite(hz.visibility_m);
-  const double beta = has_fog ? 3.912 / hz.visibility_m : 0;
+  const float beta = has_fog ? static_cast<float>(3.912 / hz.visibility_m) : 0.0f;
+  const float loss = static_cast<float>(hz.contrast_loss), dim = static_cast<float>(1 - hz.dimming);
+  const float inv_fx = static_cast<float>(1 / cam.fx), cx = static_cast<float>(cam.cx);
   cv::parallel_for_(cv::Range(0, bgr.rows), [&](const cv::Range& range) {
     for (int y = range.start; y < range.end; ++y) {
       auto* row = bgr.ptr<uint8_t>(y);
       const float* drow = depth.ptr<float>(y);
-      const double yn = (y - cam.cy) / cam.fy;
+      const float yn = static_cast<float>((y - cam.cy) / cam.fy);
       for (int x = 0; x < bgr.cols; ++x) {
         const float z = drow[x];
-        double tau = 1.0;
+        float tau = 1.0f;
         if (has_fog) {
           if (!(z > 0) || !std::isfinite(z)) {
-            tau = 0.0;
+            tau = 0.0f;
           } else {
-            const double xn = (x - cam.cx) / cam.fx;
+            // Distance along the ray from the depth along the optical axis.
+            const float xn = (x - cx) * inv_fx;
             tau = std::exp(-beta * z * std::sqrt(1 + xn * xn + yn * yn));
           }
         }
-        const double keep = tau * (1 - hz.contrast_loss);
+        const float keep = tau * (1 - loss);
         for (int c = 0; c < 3; ++c) {
-          const double j = row[3 * x + c] * (1 - hz.dimming);
-          row[3 * x + c] = cv::saturate_cast<uint8_t>(j * keep + hz.airlight[c] * (1 - keep));
+          const float v = row[3 * x + c] * dim * keep + hz.airlight[c] * (1 - keep);
+          row[3 * x + c] = static_cast<uint8_t>(std::min(255.0f, v) + 0.5f);
         }
       }
     }
