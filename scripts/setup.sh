@@ -21,7 +21,7 @@ PACKAGES=(
   build-essential cmake pkg-config git ca-certificates
   libeigen3-dev libceres-dev libopencv-dev libgdal-dev gdal-bin libproj-dev proj-bin
   libyaml-cpp-dev libspdlog-dev libfmt-dev libcli11-dev nlohmann-json3-dev
-  libgtest-dev libgmock-dev libbenchmark-dev libsqlite3-dev sqlite3 libtbb-dev
+  libgtest-dev libgmock-dev libbenchmark-dev libsqlite3-dev sqlite3 libtbb-dev libpng-dev
 )
 
 missing=()

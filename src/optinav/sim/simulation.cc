@@ -15,6 +15,7 @@
 #include "optinav/io/airsim_recording.h"
 #include "optinav/io/text_parse.h"
 #include "optinav/io/waypoints.h"
+#include "optinav/sim/png_writer.h"
 #include "optinav/sim/renderer.h"
 #include "optinav/util/error.h"
 #include "optinav/util/queue.h"
@@ -268,7 +269,7 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
   fs::create_directories(right_dir);
 
   // Writer threads encode and write the PNGs while the next frames render (PNG encoding costs
-  // about as much as rendering). Zlib's RLE strategy at level 1: the fastest that compresses.
+  // about as much as rendering; sim/png_writer.h).
   ThreadSafeQueue<ImageJob> queue(8);
   std::mutex error_mutex;
   std::string write_error;
@@ -277,18 +278,21 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
       std::max(1, std::min(4, static_cast<int>(std::thread::hardware_concurrency())));
   for (int w = 0; w < n_writers; ++w) {
     writers.emplace_back([&] {
-      const std::vector<int> params = {cv::IMWRITE_PNG_COMPRESSION, options.png_compression,
-                                       cv::IMWRITE_PNG_STRATEGY, cv::IMWRITE_PNG_STRATEGY_RLE};
-      std::vector<uint8_t> buf;
       while (auto job = queue.Pop()) {
-        cv::imencode(".png", job->image, buf, params);
-        std::ofstream f(job->path, std::ios::binary);
-        f.write(reinterpret_cast<const char*>(buf.data()),
-                static_cast<std::streamsize>(buf.size()));
-        f.close();
-        if (!f) {
+        std::string error;
+        try {
+          const std::vector<uint8_t> buf = EncodePng(job->image, options.png_compression);
+          std::ofstream f(job->path, std::ios::binary);
+          f.write(reinterpret_cast<const char*>(buf.data()),
+                  static_cast<std::streamsize>(buf.size()));
+          f.close();
+          if (!f) error = "cannot write " + job->path + " (disk full?)";
+        } catch (const Error& e) {
+          error = job->path + ": " + e.what();
+        }
+        if (!error.empty()) {
           std::lock_guard<std::mutex> lock(error_mutex);
-          if (write_error.empty()) write_error = "cannot write " + job->path + " (disk full?)";
+          if (write_error.empty()) write_error = error;
           queue.Close();
         }
       }

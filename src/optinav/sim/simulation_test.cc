@@ -6,11 +6,13 @@
 #include <sstream>
 
 #include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
 
 #include "optinav/io/airsim_recording.h"
 #include "optinav/io/euroc_dataset.h"
 #include "optinav/io/text_parse.h"
 #include "optinav/io/trajectory_io.h"
+#include "optinav/sim/png_writer.h"
 #include "optinav/util/testing.h"
 
 namespace fs = std::filesystem;
@@ -177,6 +179,21 @@ TEST(Simulation, RefusesANonEmptyFolderAndBadInputBeforeWriting) {
   RunSimulation(o);
   EXPECT_FALSE(fs::exists(dir / "seq" / "keep.txt"));
   EXPECT_TRUE(fs::exists(dir / "seq" / "sim_complete.json"));
+}
+
+TEST(Simulation, PngEncoderRoundTrips) {
+  cv::Mat colour(37, 53, CV_8UC3), grey(20, 31, CV_8UC1);
+  cv::randu(colour, 0, 256);
+  cv::randu(grey, 0, 256);
+  for (int level : {0, 1, 9}) {
+    EXPECT_EQ(cv::norm(cv::imdecode(EncodePng(colour, level), cv::IMREAD_UNCHANGED), colour,
+                       cv::NORM_INF),
+              0);
+    EXPECT_EQ(
+        cv::norm(cv::imdecode(EncodePng(grey, level), cv::IMREAD_UNCHANGED), grey, cv::NORM_INF),
+        0);
+  }
+  EXPECT_THROW(EncodePng(cv::Mat(2, 2, CV_32F)), Error);
 }
 
 TEST(Simulation, SuiteHasTheDocumentsThirtySixSequences) {
