@@ -222,18 +222,26 @@ void Renderer::RenderPinhole(const Pinhole& cam, const Rigid3d& cam_from_world, 
           double w = s.w0 + s.wx * xa + s.wy * y;
           double uw = s.u0 + s.ux * xa + s.uy * y;
           double vw = s.v0 + s.vx * xa + s.vy * y;
+          // The mip level follows the texel footprint, which changes slowly along a span: it is
+          // evaluated at the first pixel drawn in each aligned group of 4.
+          float lod = 0;
+          int lod_group = -1;
           for (int x = xa; x <= xb; ++x, w += s.wx, uw += s.ux, vw += s.vx) {
             if (w <= zrow[x]) continue;
             zrow[x] = static_cast<float>(w);
             const double z = 1.0 / w;
             const double u = uw * z, v = vw * z;
-            // Texel footprint of the pixel: derivatives of u = U / W along x and y.
-            const float dudx = static_cast<float>((s.ux - u * s.wx) * z);
-            const float dvdx = static_cast<float>((s.vx - v * s.wx) * z);
-            const float dudy = static_cast<float>((s.uy - u * s.wy) * z);
-            const float dvdy = static_cast<float>((s.vy - v * s.wy) * z);
-            const float rho2 = std::max(dudx * dudx + dvdx * dvdx, dudy * dudy + dvdy * dvdy) * n2;
-            const float lod = rho2 > 1.0f ? 0.5f * FastLog2(rho2) : 0.0f;
+            if ((x >> 2) != lod_group) {
+              lod_group = x >> 2;
+              // Texel footprint of the pixel: derivatives of u = U / W along x and y.
+              const float dudx = static_cast<float>((s.ux - u * s.wx) * z);
+              const float dvdx = static_cast<float>((s.vx - v * s.wx) * z);
+              const float dudy = static_cast<float>((s.uy - u * s.wy) * z);
+              const float dvdy = static_cast<float>((s.vy - v * s.wy) * z);
+              const float rho2 =
+                  std::max(dudx * dudx + dvdx * dvdx, dudy * dudy + dvdy * dvdy) * n2;
+              lod = rho2 > 1.0f ? 0.5f * FastLog2(rho2) : 0.0f;
+            }
             uint8_t texel[3];
             s.texture->Sample(u, v, lod, texel);
             for (int c = 0; c < 3; ++c) {

@@ -24,27 +24,7 @@ Texture::Texture(const cv::Mat& image) {
                cv::INTER_AREA);
     levels_.push_back(down);
   }
-}
-
-void Texture::Sample(double u, double v, float lod, uint8_t bgr[3]) const {
-  int k = lod <= 0.5f ? 0 : static_cast<int>(lod + 0.5f);
-  k = std::min(k, static_cast<int>(levels_.size()) - 1);
-  const cv::Mat& img = levels_[k];
-  const int n = img.cols, mask = n - 1;
-  // Wrap first (in double: u may be hundreds of repeats), then work in float.
-  const float x = static_cast<float>((u - std::floor(u)) * n) - 0.5f;
-  const float y = static_cast<float>((v - std::floor(v)) * n) - 0.5f;
-  const int ix = static_cast<int>(x + 1.0f) - 1, iy = static_cast<int>(y + 1.0f) - 1;  // floor
-  const int ax = ix & mask, ay = iy & mask, bx = (ix + 1) & mask, by = (iy + 1) & mask;
-  const int wx = static_cast<int>((x - ix) * 256.0f), wy = static_cast<int>((y - iy) * 256.0f);
-  const uint8_t* r0 = img.ptr<uint8_t>(ay);
-  const uint8_t* r1 = img.ptr<uint8_t>(by);
-  const uint8_t *p00 = r0 + 3 * ax, *p01 = r0 + 3 * bx, *p10 = r1 + 3 * ax, *p11 = r1 + 3 * bx;
-  for (int c = 0; c < 3; ++c) {
-    const int top = p00[c] * (256 - wx) + p01[c] * wx;
-    const int bot = p10[c] * (256 - wx) + p11[c] * wx;
-    bgr[c] = static_cast<uint8_t>((top * (256 - wy) + bot * wy + (1 << 15)) >> 16);
-  }
+  for (const cv::Mat& l : levels_) views_.push_back({l.data, l.step[0], l.cols});
 }
 
 cv::Mat TileableNoise(int size, int cell, uint64_t seed) {

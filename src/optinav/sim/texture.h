@@ -6,6 +6,7 @@
 // Generators are deterministic functions of their seed: the same seed gives the same texels.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -23,10 +24,36 @@ class Texture {
   int levels() const { return static_cast<int>(levels_.size()); }
   const cv::Mat& level(int k) const { return levels_[k]; }
   // Bilinear sample at (u, v) from the level nearest `lod` (log2 of texels per pixel).
-  void Sample(double u, double v, float lod, uint8_t bgr[3]) const;
+  // Inline: the renderer calls it for every textured pixel.
+  void Sample(double u, double v, float lod, uint8_t bgr[3]) const {
+    int k = lod <= 0.5f ? 0 : static_cast<int>(lod + 0.5f);
+    if (k >= static_cast<int>(views_.size())) k = static_cast<int>(views_.size()) - 1;
+    const LevelView& lv = views_[k];
+    // Wrap first (in double: u may be hundreds of repeats), then work in float.
+    const float x = static_cast<float>((u - std::floor(u)) * lv.n) - 0.5f;
+    const float y = static_cast<float>((v - std::floor(v)) * lv.n) - 0.5f;
+    const int ix = static_cast<int>(x + 1.0f) - 1, iy = static_cast<int>(y + 1.0f) - 1;  // floor
+    const int mask = lv.n - 1;
+    const int ax = ix & mask, ay = iy & mask, bx = (ix + 1) & mask, by = (iy + 1) & mask;
+    const int wx = static_cast<int>((x - ix) * 256.0f), wy = static_cast<int>((y - iy) * 256.0f);
+    const uint8_t* r0 = lv.data + ay * lv.step;
+    const uint8_t* r1 = lv.data + by * lv.step;
+    const uint8_t *p00 = r0 + 3 * ax, *p01 = r0 + 3 * bx, *p10 = r1 + 3 * ax, *p11 = r1 + 3 * bx;
+    for (int c = 0; c < 3; ++c) {
+      const int top = p00[c] * (256 - wx) + p01[c] * wx;
+      const int bot = p10[c] * (256 - wx) + p11[c] * wx;
+      bgr[c] = static_cast<uint8_t>((top * (256 - wy) + bot * wy + (1 << 15)) >> 16);
+    }
+  }
 
  private:
+  struct LevelView {
+    const uint8_t* data;
+    size_t step;
+    int n;
+  };
   std::vector<cv::Mat> levels_;
+  std::vector<LevelView> views_;  // raw access to levels_ (same order)
   int size_ = 0;
 };
 

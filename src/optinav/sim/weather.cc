@@ -274,10 +274,10 @@ void DrawParticles(cv::Mat& bgr, const cv::Mat& depth, const camera::PinholeCame
 }
 
 struct Haze {
-  double visibility_m;   // +inf: none
-  cv::Vec3f airlight;    // BGR
-  double contrast_loss;  // extra blend towards the airlight, [0, 1)
-  double dimming;        // multiplies the image (overcast), [0, 1)
+  double visibility_m;     // +inf: none
+  cv::Vec3i airlight_int;  // BGR
+  double contrast_loss;    // extra blend towards the airlight, [0, 1)
+  double dimming;          // multiplies the image (overcast), [0, 1)
 };
 
 Haze HazeFor(const WeatherSpec& s) {
@@ -301,29 +301,34 @@ void ApplyHaze(cv::Mat& bgr, const cv::Mat& depth, const camera::PinholeCamera& 
                const Haze& hz) {
   const bool has_fog = std::isfinite(hz.visibility_m);
   const float beta = has_fog ? static_cast<float>(3.912 / hz.visibility_m) : 0.0f;
-  const float loss = static_cast<float>(hz.contrast_loss), dim = static_cast<float>(1 - hz.dimming);
-  const float inv_fx = static_cast<float>(1 / cam.fx), cx = static_cast<float>(cam.cx);
+  const float loss = static_cast<float>(hz.contrast_loss);
+  const int dim = static_cast<int>(std::lround(256 * (1 - hz.dimming)));  // 8.8 fixed point
+  // Squared normalised x of every column: the ray length is sqrt(1 + xn^2 + yn^2) times the
+  // depth along the optical axis.
+  std::vector<float> xn2(bgr.cols);
+  for (int x = 0; x < bgr.cols; ++x) {
+    const float xn = static_cast<float>((x - cam.cx) / cam.fx);
+    xn2[x] = xn * xn;
+  }
   cv::parallel_for_(cv::Range(0, bgr.rows), [&](const cv::Range& range) {
     for (int y = range.start; y < range.end; ++y) {
       auto* row = bgr.ptr<uint8_t>(y);
       const float* drow = depth.ptr<float>(y);
       const float yn = static_cast<float>((y - cam.cy) / cam.fy);
+      const float one_yn2 = 1 + yn * yn;
       for (int x = 0; x < bgr.cols; ++x) {
         const float z = drow[x];
         float tau = 1.0f;
         if (has_fog) {
-          if (!(z > 0) || !std::isfinite(z)) {
-            tau = 0.0f;
-          } else {
-            // Distance along the ray from the depth along the optical axis.
-            const float xn = (x - cx) * inv_fx;
-            tau = std::exp(-beta * z * std::sqrt(1 + xn * xn + yn * yn));
-          }
+          tau = (z > 0 && z < 1e30f) ? std::exp(-beta * z * std::sqrt(one_yn2 + xn2[x])) : 0.0f;
         }
-        const float keep = tau * (1 - loss);
+        // Fraction of the scene kept, 0..256 (8-bit blending is all an 8-bit image needs).
+        const int keep = static_cast<int>(tau * (1 - loss) * 256 + 0.5f);
+        uint8_t* p = row + 3 * x;
         for (int c = 0; c < 3; ++c) {
-          const float v = row[3 * x + c] * dim * keep + hz.airlight[c] * (1 - keep);
-          row[3 * x + c] = static_cast<uint8_t>(std::min(255.0f, v) + 0.5f);
+          const int scene = (p[c] * dim) >> 8;
+          p[c] =
+              static_cast<uint8_t>((scene * keep + hz.airlight_int[c] * (256 - keep) + 128) >> 8);
         }
       }
     }

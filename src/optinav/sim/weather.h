@@ -51,9 +51,10 @@ enum class WeatherKind {
 struct WeatherSpec {
   WeatherKind kind = WeatherKind::kNone;
   double intensity = 0.0;  // 0..1 (100 %)
-  // Multiplies the fog/dust/rain visibility distances. 1 suits ground vehicles and low flights
-  // (fog visibility 1000 m at 0+ %, 200 m at 50 %, 40 m at 100 %); a nadir camera several
-  // hundred metres up wants about altitude / 50 so that 100 % still shows the ground faintly.
+  // Multiplies the fog/dust/rain/snow visibility distances. 1 suits ground vehicles and low
+  // flights (fog visibility 1000 m at 0+ %, 200 m at 50 %, 40 m at 100 %). A nadir camera at
+  // altitude h wants about h / 20: then 100 % fog leaves the ground e^-2 (14 %) of its contrast
+  // and 50 % about 70 %.
   double distance_scale = 1.0;
 
   bool IsClear() const { return kind == WeatherKind::kNone || intensity <= 0; }

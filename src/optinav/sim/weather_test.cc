@@ -160,6 +160,37 @@ TEST(Weather, SurfaceEffectsFollowTheRoles) {
   EXPECT_GT(cv::mean(snowy)[1], cv::mean(road)[1] + 40);
 }
 
+// The mission's use: a nadir camera 500 m up over a warped orthophoto, haze scaled to altitude.
+TEST(Weather, NadirCameraHazeFollowsDistanceScale) {
+  camera::PinholeCamera cam = camera::PinholeCamera::FromHorizontalFov(64, 48, 0.2);
+  cv::Mat ground(cam.height, cam.width, CV_8UC3);
+  for (int y = 0; y < ground.rows; ++y) {
+    for (int x = 0; x < ground.cols; ++x) {
+      ground.at<cv::Vec3b>(y, x) =
+          ((x / 8 + y / 8) % 2) ? cv::Vec3b(200, 200, 200) : cv::Vec3b(40, 40, 40);
+    }
+  }
+  const cv::Mat depth(cam.height, cam.width, CV_32F, cv::Scalar(500.0f));
+  // Looking straight down from 500 m.
+  const Rigid3d world_from_cam(ExpSO3(Eigen::Vector3d(M_PI, 0, 0)), Eigen::Vector3d(0, 0, 500));
+  WeatherSpec fog = ParseWeather("fog:100");
+  fog.distance_scale = 500.0 / 20;
+  cv::Mat img = ground.clone();
+  ApplyWeather(img, depth, cam, world_from_cam, 0, fog, 1);
+  const double before = 160, after = img.at<cv::Vec3b>(24, 40)[0] - img.at<cv::Vec3b>(24, 32)[0];
+  const double kept = std::abs(after) / before;
+  std::printf(
+      "nadir camera at 500 m, fog 100 %% with distance_scale 25: %.3f of the contrast "
+      "kept (expected e^-2 = 0.135)\n",
+      kept);
+  EXPECT_NEAR(kept, std::exp(-1.956), 0.02);
+  WeatherSpec dust = ParseWeather("dust:50");
+  dust.distance_scale = 25;
+  cv::Mat d = ground.clone();
+  ApplyWeather(d, depth, cam, world_from_cam, 3'000'000'000, dust, 1);
+  EXPECT_GT(cv::norm(d, ground, cv::NORM_L1), 0);
+}
+
 TEST(Weather, RejectsMismatchedInputs) {
   camera::PinholeCamera cam = CarRig().Scaled(0.4).left;
   cv::Mat img(cam.height, cam.width, CV_8UC3, cv::Scalar::all(0));
