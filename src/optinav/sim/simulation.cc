@@ -1,6 +1,5 @@
 #include "optinav/sim/simulation.h"
 
-#include <atomic>
 #include <cmath>
 #include <filesystem>
 #include <fstream>

@@ -164,6 +164,13 @@ std::vector<RouteSample> SampleRoute(const BodyTrajectory& traj) {
   return out;
 }
 
+// The first sample at or after arc length s (route.end() past the end).
+std::vector<RouteSample>::const_iterator AtArcLength(const std::vector<RouteSample>& route,
+                                                     float s) {
+  return std::lower_bound(route.begin(), route.end(), s,
+                          [](const RouteSample& r, float v) { return r.s < v; });
+}
+
 float DistanceToRoute(const std::vector<RouteSample>& route, const Eigen::Vector2f& p) {
   float best = 1e9f;
   for (size_t i = 1; i < route.size(); ++i) {
@@ -257,8 +264,7 @@ World MakeUrban(const WorldOptions& o) {
   };
   for (int side : {1, -1}) {
     for (float s = 5; s < route.back().s; s += uni(16, 26)) {
-      const auto it = std::lower_bound(route.begin(), route.end(), s,
-                                       [](const RouteSample& r, float v) { return r.s < v; });
+      const auto it = AtArcLength(route, s);
       if (it == route.end()) break;
       if (u01(rng) < 0.12f) continue;
       const float depth = uni(10, 16), width = uni(11, 18);
@@ -286,10 +292,8 @@ World MakeUrban(const WorldOptions& o) {
   }
   // Parked cars, street lights and street trees.
   for (float s = 20; s < route.back().s - 10; s += uni(7, 16)) {
-    const auto it = std::lower_bound(route.begin(), route.end(), s,
-                                     [](const RouteSample& r, float v) { return r.s < v; });
-    const auto ahead = std::lower_bound(route.begin(), route.end(), s + 8,
-                                        [](const RouteSample& r, float v) { return r.s < v; });
+    const auto it = AtArcLength(route, s);
+    const auto ahead = AtArcLength(route, s + 8);
     if (ahead == route.end()) break;
     if (std::abs(std::remainder(ahead->yaw - it->yaw, 2 * M_PI)) > 0.05) continue;  // corner
     if (u01(rng) < 0.45f) continue;
@@ -301,8 +305,7 @@ World MakeUrban(const WorldOptions& o) {
            4.4f);
   }
   for (float s = 10; s < route.back().s; s += 30) {
-    const auto it = std::lower_bound(route.begin(), route.end(), s,
-                                     [](const RouteSample& r, float v) { return r.s < v; });
+    const auto it = AtArcLength(route, s);
     if (it == route.end()) break;
     for (float off : {-5.6f, 11.6f}) {
       const Eigen::Vector2f c = it->p + off * it->left;
@@ -313,16 +316,13 @@ World MakeUrban(const WorldOptions& o) {
       mb.Box({arm.x(), arm.y(), 5.9f}, 0.5f, 1.9f, 0.25f, it->yaw, metal, metal, {1, 1},
              Vec3(0.5f, 0.5f, 0.55f));
     }
-    const Eigen::Vector2f tc = it->p + 12.2f * it->left + 0.2f * Eigen::Vector2f(1, 0);
-    const auto mid = std::lower_bound(route.begin(), route.end(), s + 15,
-                                      [](const RouteSample& r, float v) { return r.s < v; });
+    const auto mid = AtArcLength(route, s + 15);
     if (mid != route.end()) {
       const Eigen::Vector2f t2 = mid->p - 6.0f * mid->left;
       if (DistanceToRoute(route, t2) > 5.5f && free_at(t2, 1.5f, 0)) {
         mb.Tree({t2.x(), t2.y(), 0.15f}, uni(5, 8), uni(1.5f, 2.5f), bark, foliage[0], uni(0, 3));
       }
     }
-    (void)tc;
   }
   // A park inside the loop and a forest ring around the block.
   const Eigen::AlignedBox2f inner(rbox.min() + Eigen::Vector2f(18, 18),
