@@ -18,6 +18,8 @@ struct Command {
 constexpr Command kCommands[] = {
     {"eval", optinav::RunEval, "evaluate trajectories: APE and RPE exactly as evo defines them"},
     {"map", optinav::RunMap, "orthophoto map databases: build, info, locate frames"},
+    {"mission", optinav::RunMission,
+     "GNSS-denied missions to a target over an orthophoto map (30-run experiments)"},
     {"demo", optinav::RunDemo, "run the end-to-end demo on generated data"},
 };
 
