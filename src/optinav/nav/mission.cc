@@ -178,6 +178,7 @@ MissionResult Mission::Run(const MissionOptions& o) {
   int failures = 0;
   Eigen::Vector2d last_command_step = Eigen::Vector2d::Zero();  // commanded ENU displacement
   FrameOdometry odometry;
+  std::vector<Eigen::Vector2d> rejected_innovations;  // consecutive rejected fixes
   double t = 0;
 
   for (int step = 0;; ++step) {
@@ -229,6 +230,7 @@ MissionResult Mission::Run(const MissionOptions& o) {
       if (step > 0) {
         Eigen::Vector2d dx;
         double sigma;
+        bool odometry_used = false;
         if (os.ok) {
           const LocalSimilarity s =
               SimilarityAt(os.prev_from_cur, cv::Point2d(frame_centre.x(), frame_centre.y()));
@@ -236,10 +238,21 @@ MissionResult Mission::Run(const MissionOptions& o) {
               scale * RotateFrameToMap(theta, {s.translation_px.x, s.translation_px.y});
           const Eigen::Vector2d here_px = locator.LatLonToPixel(from_enu(x));
           dx = to_enu(locator.PixelToLatLon(here_px + d_px)) - x;
-          theta += s.rotation_rad;
-          scale *= s.scale;
-          sigma = o.odometry_sigma * dx.norm() + 1.0;
-        } else {
+          // Plausibility: close to the commanded step (compass error and wind allowed for), no
+          // sharp turn or jump in altitude. An implausible homography (e.g. a frame matched to
+          // the wrong place) is ignored and the step is dead-reckoned instead.
+          const double allowed = 0.3 * last_command_step.norm() + 20.0;
+          odometry_used = (dx - last_command_step).norm() <= allowed &&
+                          std::abs(s.rotation_rad) < 30 * kDeg && s.scale > 0.8 && s.scale < 1.25;
+          if (odometry_used) {
+            theta += s.rotation_rad;
+            scale *= s.scale;
+            sigma = o.odometry_sigma * dx.norm() + 1.0;
+          } else {
+            log.odometry_ok = false;
+          }
+        }
+        if (!odometry_used) {
           dx = last_command_step;
           theta = PixelAngle(locator.HeadingToPixelDirection(command));
           sigma = o.dead_reckoning_sigma * dx.norm() + 2.0;
@@ -297,7 +310,26 @@ MissionResult Mission::Run(const MissionOptions& o) {
         const Eigen::Matrix2d S = P + Eigen::Matrix2d::Identity() * s * s;
         const Eigen::Vector2d innov = z - x;
         const double d2 = innov.dot(S.ldlt().solve(innov));
-        if (d2 <= o.gate_chi2) {
+        // Relocalization: when the last fixes were all rejected but agree with each other about
+        // where the drone is relative to the prediction, the filter is the one that is wrong
+        // (e.g. after a bad odometry step): restart it at the fix.
+        rejected_innovations.push_back(innov);
+        bool relocalize = false;
+        if (d2 > o.gate_chi2 && rejected_innovations.size() >= 3) {
+          const size_t n = rejected_innovations.size();
+          relocalize = true;
+          for (size_t k = n - 3; k + 1 < n; ++k) {
+            relocalize &= (rejected_innovations[k] - innov).norm() < 3 * s + 20.0;
+          }
+        }
+        if (relocalize) {
+          x = z;
+          P = Eigen::Matrix2d::Identity() * s * s;
+          rejected_innovations.clear();
+          log.fix_accepted = true;
+          log.fix_reason = "relocalized: the last 3 fixes agreed on a filter offset";
+        } else if (d2 <= o.gate_chi2) {
+          rejected_innovations.clear();
           const Eigen::Matrix2d K = P * S.inverse();
           x += K * innov;
           P = (Eigen::Matrix2d::Identity() - K) * P;

@@ -37,23 +37,23 @@ using FrameHook = std::function<void(cv::Mat& gray, const FrameView& view)>;
 
 struct MissionOptions {
   geo::LatLon start, target;
-  double speed_m_s = 30.0;      // ground speed commanded
-  double altitude_m = 0.0;      // above ground; 0: the altitude the map was built for
-  double step_s = 1.0;          // time between frames (and guidance updates)
+  double speed_m_s = 30.0;       // ground speed commanded
+  double altitude_m = 0.0;       // above ground; 0: the altitude the map was built for
+  double step_s = 1.0;           // time between frames (and guidance updates)
   double arrive_radius_m = 10;   // the mission ends when the estimate is this close
   double success_radius_m = 50;  // a run succeeds when the true drone ends this close
-  double time_limit_s = 0;      // 0: 3 x the straight-line time + 120 s
-  double compass_bias_deg = 3;  // heading hold error of the autopilot, uniform +- this per run
-  double wind_m_s = 0;          // constant wind (seeded direction) pushing the true drone
+  double time_limit_s = 0;       // 0: 3 x the straight-line time + 120 s
+  double compass_bias_deg = 3;   // heading hold error of the autopilot, uniform +- this per run
+  double wind_m_s = 0;           // constant wind (seeded direction) pushing the true drone
   FrameEffectOptions effects;
-  FrameHook weather;                  // optional, applied after the photometric effects
-  bool use_odometry = true;           // false: the document's loop (fix or keep the last bearing)
-  double feature_fix_sigma_m = 0;     // 0: 1.5 map pixels
-  double oc_fix_sigma_m = 0;          // 0: 3 map pixels
-  double odometry_sigma = 0.05;       // odometry error per metre flown (fraction)
-  double dead_reckoning_sigma = 0.3;  // error per metre when flying blind (compass bias, wind)
-  double gate_chi2 = 13.8;            // Mahalanobis gate for fixes (99.9 % for 2 dof)
-  int global_after_failures = 4;      // consecutive steps without an accepted fix -> search all
+  FrameHook weather;                   // optional, applied after the photometric effects
+  bool use_odometry = true;            // false: the document's loop (fix or keep the last bearing)
+  double feature_fix_sigma_m = 0;      // 0: 1.5 map pixels
+  double oc_fix_sigma_m = 0;           // 0: 3 map pixels
+  double odometry_sigma = 0.05;        // odometry error per metre flown (fraction)
+  double dead_reckoning_sigma = 0.15;  // error per metre when flying blind (compass bias, wind)
+  double gate_chi2 = 13.8;             // Mahalanobis gate for fixes (99.9 % for 2 dof)
+  int global_after_failures = 4;       // consecutive steps without an accepted fix -> search all
   uint64_t seed = 1;
   bool keep_frames = false;  // keep every frame in the result (for debugging/tests)
 };
