@@ -9,6 +9,7 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "optinav/exe/cli_common.h"
@@ -30,7 +31,7 @@ struct MissionArgs {
   std::string map, start, target, frames_from, ortho, out, weather = "none", pictures = "all";
   double min_distance_m = 3000, margin_m = 300;
   int runs = 1;
-  bool force = false, no_odometry = false;
+  bool force = false, no_odometry = false, save_frames = false;
   nav::MissionOptions o;
 };
 
@@ -181,12 +182,8 @@ int RunMission(MissionArgs& a) {
   if (a.pictures != "all" && a.pictures != "summary" && a.pictures != "none") {
     throw Error("expected all|summary|none, got '" + a.pictures + "'", {.field = "--pictures"});
   }
-  if (a.weather != "none") {
-    throw Error(
-        "weather effects are not available in this build (the simulator's weather is not "
-        "merged yet); use --weather none",
-        {.field = "--weather"});
-  }
+  sim::WeatherSpec weather = sim::ParseWeather(a.weather);
+  weather.distance_scale = 0;  // nadir camera: scaled to the altitude (nav::MakeWeatherHook)
   const maploc::MapDatabase db = maploc::LoadMapDatabase(a.map);
   const std::string ortho = a.ortho.empty() ? db.ortho_path : a.ortho;
   if (!fs::exists(ortho)) {
@@ -237,6 +234,8 @@ int RunMission(MissionArgs& a) {
     o.start = legs[i].first;
     o.target = legs[i].second;
     o.seed = a.o.seed + i;
+    o.weather = nav::MakeWeatherHook(weather, o.seed);
+    o.keep_frames = a.save_frames;
     nav::MissionResult r = mission.Run(o);
     std::vector<double> run_fix;
     int run_found = 0;
@@ -266,6 +265,14 @@ int RunMission(MissionArgs& a) {
                 Quantile(run_fix, 0.5));
     const fs::path run_dir = out / fmt::format("run_{:03d}", i + 1);
     WriteRunOutputs(run_dir, i + 1, mission, a.pictures == "all" ? bg.get() : nullptr, o, r);
+    if (a.save_frames) {
+      fs::create_directories(run_dir / "frames");
+      for (size_t k = 0; k < r.frames.size(); ++k) {
+        const std::string f = (run_dir / "frames" / fmt::format("step_{:04d}.png", k)).string();
+        if (!cv::imwrite(f, r.frames[k])) throw Error("cannot write frame", {.file = f});
+      }
+      r.frames.clear();
+    }
     runs_json.push_back({{"run", i + 1},
                          {"start", {o.start.lat_deg, o.start.lon_deg}},
                          {"target", {o.target.lat_deg, o.target.lon_deg}},
@@ -318,7 +325,7 @@ int RunMission(MissionArgs& a) {
         {"step_s", a.o.step_s},
         {"arrive_radius_m", a.o.arrive_radius_m},
         {"success_radius_m", a.o.success_radius_m},
-        {"weather", a.weather},
+        {"weather", weather.ToString()},
         {"odometry", a.o.use_odometry},
         {"wind_m_s", a.o.wind_m_s},
         {"compass_bias_deg", a.o.compass_bias_deg},
@@ -358,7 +365,7 @@ int RunMission(MissionArgs& a) {
     plot.notes.push_back(fmt::format(
         "map {}, frames {}, {} m/s, weather {}; median fix error {:.1f} m, fix rate {:.0f} %",
         fs::path(db.ortho_path).filename().string(), fs::path(frames.path()).filename().string(),
-        a.o.speed_m_s, a.weather, Quantile(fix_errors, 0.5), 100.0 * found / steps));
+        a.o.speed_m_s, weather.ToString(), Quantile(fix_errors, 0.5), 100.0 * found / steps));
     plot.notes.push_back("o start   * target   (blue circles, red stars)");
     report::WriteMapPlot((out / "summary").string(), plot);
   }
@@ -441,6 +448,7 @@ int RunMission(int argc, char** argv) {
   app.add_flag("--no-odometry", a.no_odometry,
                "the document's loop: fixes only, keep the last bearing when a fix fails");
   app.add_option("--pictures", a.pictures, "all | summary | none")->capture_default_str();
+  app.add_flag("--save-frames", a.save_frames, "write every camera frame to run_NNN/frames/");
   app.add_option("--log-level", log_level, "trace|debug|info|warn|error")->capture_default_str();
   try {
     app.parse(argc, argv);

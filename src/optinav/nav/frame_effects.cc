@@ -2,8 +2,12 @@
 
 #include <cmath>
 
+#include <Eigen/Geometry>
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
+
+#include "optinav/camera/camera.h"
+#include "optinav/geometry/lie.h"
 
 namespace optinav::nav {
 
@@ -81,6 +85,50 @@ void ApplyPhotometricEffects(cv::Mat& gray, const FrameEffectOptions& o, double 
     g16 += noise;
     g16.convertTo(gray, CV_8U);
   }
+}
+
+FrameHook MakeWeatherHook(sim::WeatherSpec spec, uint64_t seed) {
+  if (spec.IsClear()) return {};
+  return [spec, seed](cv::Mat& gray, const FrameView& v) {
+    constexpr double kDeg = M_PI / 180.0;
+    camera::PinholeCamera cam;
+    cam.width = v.width;
+    cam.height = v.height;
+    cam.fx = cam.fy = v.focal_px;
+    cam.cx = 0.5 * v.width - 0.5;
+    cam.cy = 0.5 * v.height - 0.5;
+    // Nadir camera in ENU (z up): optical axis down, image up = the heading; then the tilt about
+    // an axis in the image plane (as maploc::SynthesizeFrame tilts it).
+    const double h = v.heading_deg * kDeg;
+    Eigen::Matrix3d nadir;
+    nadir.col(0) = Eigen::Vector3d(std::cos(h), -std::sin(h), 0);   // image right
+    nadir.col(1) = Eigen::Vector3d(-std::sin(h), -std::cos(h), 0);  // image down
+    nadir.col(2) = Eigen::Vector3d(0, 0, -1);                       // optical axis
+    const double ta = v.tilt_azimuth_deg * kDeg;
+    const Eigen::Matrix3d tilt =
+        Eigen::AngleAxisd(v.tilt_deg * kDeg, Eigen::Vector3d(std::cos(ta), std::sin(ta), 0))
+            .toRotationMatrix();
+    Rigid3d world_from_cam;
+    world_from_cam.rotation = Eigen::Quaterniond(nadir * tilt);
+    world_from_cam.translation = v.position_enu;
+    const Eigen::Matrix3d r = world_from_cam.rotation.toRotationMatrix();
+    const double altitude = v.position_enu.z();
+    cv::Mat depth(gray.size(), CV_32F);
+    for (int y = 0; y < depth.rows; ++y) {
+      float* row = depth.ptr<float>(y);
+      for (int x = 0; x < depth.cols; ++x) {
+        const Eigen::Vector3d ray((x - cam.cx) / cam.fx, (y - cam.cy) / cam.fy, 1.0);
+        const double down = -(r * ray).z();
+        row[x] = down > 1e-6 ? static_cast<float>(altitude / down) : 0.0f;  // 0: sky
+      }
+    }
+    sim::WeatherSpec s = spec;
+    if (s.distance_scale <= 0) s.distance_scale = altitude / 50.0;
+    cv::Mat bgr;
+    cv::cvtColor(gray, bgr, cv::COLOR_GRAY2BGR);
+    sim::ApplyWeather(bgr, depth, cam, world_from_cam, v.t_ns, s, seed);
+    cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
+  };
 }
 
 }  // namespace optinav::nav

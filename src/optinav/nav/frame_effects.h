@@ -3,10 +3,14 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <random>
 #include <string>
 
+#include <Eigen/Core>
 #include <opencv2/core.hpp>
+
+#include "optinav/sim/weather.h"
 
 namespace optinav::nav {
 
@@ -36,5 +40,23 @@ class AltitudeProfile {
 // gamma) and sensor noise, in place on an 8-bit grey frame. Draws from `rng`.
 void ApplyPhotometricEffects(cv::Mat& gray, const FrameEffectOptions& options, double direction_rad,
                              std::mt19937_64& rng);
+
+// What the camera saw when a frame was taken (for effects that need the geometry, e.g. weather).
+struct FrameView {
+  int64_t t_ns = 0;
+  Eigen::Vector3d position_enu = Eigen::Vector3d::Zero();  // camera, about the start; z = AGL
+  double heading_deg = 0;                                  // frame up, clockwise from north
+  double tilt_deg = 0, tilt_azimuth_deg = 0;
+  double focal_px = 0;
+  int width = 0, height = 0;
+};
+using FrameHook = std::function<void(cv::Mat& gray, const FrameView& view)>;
+
+// A hook putting the simulator's weather (sim/weather.h: fog and dust haze by depth, rain, snow,
+// leaves and dust particles as 3D objects around the camera) on a grey nadir frame. The depth
+// of each pixel is its distance to flat ground along the optical axis, from the view's altitude
+// and tilt. `spec.distance_scale` <= 0 picks altitude / 50 (so 100 % still shows the ground
+// faintly, as the simulator suggests for nadir cameras). Returns an empty hook for clear weather.
+FrameHook MakeWeatherHook(sim::WeatherSpec spec, uint64_t seed);
 
 }  // namespace optinav::nav

@@ -24,17 +24,6 @@
 
 namespace optinav::nav {
 
-// What the camera saw when a frame was taken (for effects that need the geometry, e.g. weather).
-struct FrameView {
-  int64_t t_ns = 0;
-  Eigen::Vector3d position_enu = Eigen::Vector3d::Zero();  // camera, about the start; z = AGL
-  double heading_deg = 0;                                  // frame up, clockwise from north
-  double tilt_deg = 0, tilt_azimuth_deg = 0;
-  double focal_px = 0;
-  int width = 0, height = 0;
-};
-using FrameHook = std::function<void(cv::Mat& gray, const FrameView& view)>;
-
 struct MissionOptions {
   geo::LatLon start, target;
   double speed_m_s = 30.0;       // ground speed commanded

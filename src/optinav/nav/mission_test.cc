@@ -225,6 +225,59 @@ TEST_F(NaipMission, ThirtyRunsOverAnOutdatedMap) {
   EXPECT_LT(Median(e.fix_errors), 10.0);
 }
 
+// The outdated map under the simulator's weather at 50 %: haze by depth (scaled to the altitude)
+// and particles, seeded per run.
+TEST_F(NaipMission, WeatherThirtyRunsOverAnOutdatedMapInFog) {
+  const Experiment e =
+      RunMany(*db_, maploc::testmaps::Naip("20170827"), 30, 500, [](MissionOptions& o) {
+        sim::WeatherSpec w = sim::ParseWeather("fog:50");
+        w.distance_scale = 0;  // altitude / 50
+        o.weather = MakeWeatherHook(w, o.seed);
+      });
+  Print("frames 2017 (map 2009), fog 50 %", e, ">= 28/30");
+  EXPECT_GE(e.reached, 28);
+  EXPECT_LT(Median(e.fix_errors), 10.0);
+}
+
+TEST_F(NaipMission, WeatherThirtyRunsOverAnOutdatedMapInDust) {
+  const Experiment e =
+      RunMany(*db_, maploc::testmaps::Naip("20170827"), 30, 600, [](MissionOptions& o) {
+        sim::WeatherSpec w = sim::ParseWeather("dust:50");
+        w.distance_scale = 0;
+        o.weather = MakeWeatherHook(w, o.seed);
+      });
+  Print("frames 2017 (map 2009), dust 50 %", e, ">= 28/30");
+  EXPECT_GE(e.reached, 28);
+  EXPECT_LT(Median(e.fix_errors), 10.0);
+}
+
+// The hook darkens contrast with the intensity and leaves a clear frame alone.
+TEST_F(NaipMission, WeatherHookLowersContrastMonotonically) {
+  const geo::GeoRaster raster = geo::GeoRaster::Open(maploc::testmaps::Naip("20090818"));
+  maploc::FrameSpec s;
+  s.width = s.height = 256;
+  s.gsd_m = 5.0;
+  s.centre_px = {450, 360};
+  const cv::Mat clear = maploc::SynthesizeFrame(raster, 5.0, s);
+  FrameView v;
+  v.position_enu = {0, 0, 640};
+  v.focal_px = 128;
+  v.width = v.height = 256;
+  EXPECT_FALSE(MakeWeatherHook(sim::ParseWeather("fog:0"), 1));
+  double last = 1e9;
+  for (const char* w : {"fog:25", "fog:50", "fog:75", "fog:100"}) {
+    sim::WeatherSpec spec = sim::ParseWeather(w);
+    spec.distance_scale = 0;
+    cv::Mat g = clear.clone();
+    MakeWeatherHook(spec, 3)(g, v);
+    cv::Scalar mean, sd;
+    cv::meanStdDev(g, mean, sd);
+    std::printf("%s: contrast (std of grey) %.1f\n", w, sd[0]);
+    EXPECT_LT(sd[0], last) << w;
+    last = sd[0];
+  }
+}
+
 TEST_F(NaipMission, TheDocumentsLoopWithoutOdometryStillWorksOnTheMapImage) {
   const Experiment e = RunMany(*db_, maploc::testmaps::Naip("20090818"), 5, 300,
                                [](MissionOptions& o) { o.use_odometry = false; });
