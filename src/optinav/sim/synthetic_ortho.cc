@@ -1,18 +1,15 @@
-// A procedural orthophoto for benchmarks at sizes no test data has: multi-octave value noise
-// (fields, patches and fine texture) with straight "roads", unique everywhere, 8-bit grey,
-// written as a tiled GeoTIFF in UTM 14N.
-#pragma once
+#include "optinav/sim/synthetic_ortho.h"
 
+#include <algorithm>
 #include <random>
-#include <string>
 
 #include <opencv2/imgproc.hpp>
 
 #include "optinav/geo/raster.h"
 
-namespace optinav::bench {
+namespace optinav::sim {
 
-inline void WriteSyntheticOrtho(const std::string& path, int size, double gsd_m, unsigned seed) {
+void WriteSyntheticOrtho(const std::string& path, int size, double gsd_m, unsigned seed) {
   std::mt19937 rng(seed);
   cv::Mat acc(size, size, CV_32F, cv::Scalar(0));
   double amp = 1.0;
@@ -37,4 +34,4 @@ inline void WriteSyntheticOrtho(const std::string& path, int size, double gsd_m,
   geo::WriteGeoTiff(path, img, gt, "EPSG:26914", {.tiled = true, .compress = "NONE"});
 }
 
-}  // namespace optinav::bench
+}  // namespace optinav::sim
