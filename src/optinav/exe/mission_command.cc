@@ -14,6 +14,7 @@
 
 #include "optinav/exe/cli_common.h"
 #include "optinav/exe/commands.h"
+#include "optinav/exe/mission_experiment.h"
 #include "optinav/io/text_parse.h"
 #include "optinav/nav/mission.h"
 #include "optinav/report/geo_export.h"
@@ -26,14 +27,6 @@ namespace optinav {
 namespace {
 
 namespace fs = std::filesystem;
-
-struct MissionArgs {
-  std::string map, start, target, frames_from, ortho, out, weather = "none", pictures = "all";
-  double min_distance_m = 3000, margin_m = 300;
-  int runs = 1;
-  bool force = false, no_odometry = false, save_frames = false;
-  nav::MissionOptions o;
-};
 
 struct MeanStd {
   double mean = 0, std = 0;
@@ -177,7 +170,9 @@ void WriteRunOutputs(const fs::path& dir, int run, nav::Mission& m, const Backgr
   report::WriteMapPlot((dir / "path").string(), plot);
 }
 
-int RunMission(MissionArgs& a) {
+}  // namespace
+
+int RunMissionExperiment(MissionExperiment& a) {
   if (a.runs < 1 || a.runs > 10000) throw Error("must be in [1, 10000]", {.field = "--runs"});
   if (a.pictures != "all" && a.pictures != "summary" && a.pictures != "none") {
     throw Error("expected all|summary|none, got '" + a.pictures + "'", {.field = "--pictures"});
@@ -395,15 +390,13 @@ int RunMission(MissionArgs& a) {
   return reached == a.runs ? 0 : 3;
 }
 
-}  // namespace
-
 int RunMission(int argc, char** argv) {
   CLI::App app{
       "Fly GNSS-denied missions to a target over an orthophoto map: camera frames are "
       "synthesised at the true pose, localized against the map database, blended with "
       "frame-to-frame odometry, and the drone turns towards the target."};
   app.name("optinav mission");
-  MissionArgs a;
+  MissionExperiment a;
   std::string log_level = "info";
   app.add_option("--map", a.map, "map database (optinav map build)")->required();
   app.add_option("--start", a.start, "start LAT,LON, or 'random'")->required();
@@ -457,7 +450,7 @@ int RunMission(int argc, char** argv) {
   }
   try {
     SetLogLevel(log_level);
-    return RunMission(a);
+    return RunMissionExperiment(a);
   } catch (const Error& e) {
     spdlog::error("{}", e.what());
     return 1;

@@ -175,7 +175,8 @@ MissionResult Mission::Run(const MissionOptions& o) {
   geo::LatLon truth = o.start;
   geo::LatLon last_fix = o.start;
   double last_fix_t = 0;
-  int failures = 0;
+  int failures = 0;          // consecutive steps without an accepted fix
+  int feature_failures = 0;  // consecutive frames the feature method did not localize
   Eigen::Vector2d last_command_step = Eigen::Vector2d::Zero();  // commanded ENU displacement
   FrameOdometry odometry;
   std::vector<Eigen::Vector2d> rejected_innovations;  // consecutive rejected fixes
@@ -290,7 +291,19 @@ MissionResult Mission::Run(const MissionOptions& o) {
       prior.extra_centres.clear();
       log.global_search = true;
     }
-    const maploc::LocateResult r = locator.Locate(frame, prior);
+    // Method order: once features have failed on the last 3 frames (an outdated map), try
+    // orientation correlation first, and features first again every 10th step to notice when
+    // they work again.
+    const bool oc_first = feature_failures >= 3 && step % 10 != 0;
+    const maploc::LocateResult r =
+        locator.Locate(frame, prior,
+                       oc_first ? maploc::Locator::Order::kCorrelationFirst
+                                : maploc::Locator::Order::kFeaturesFirst);
+    if (r.localized && r.method == "features") {
+      feature_failures = 0;
+    } else if (!oc_first || !r.localized) {
+      ++feature_failures;  // features were tried and failed
+    }
     log.times.extraction_ms = r.times.extraction_ms;
     log.times.matching_ms = r.times.matching_ms;
     log.times.estimation_ms = r.times.estimation_ms;

@@ -10,4 +10,9 @@ namespace optinav::sim {
 // size x size pixels at gsd_m metres per pixel; throws Error on I/O failure.
 void WriteSyntheticOrtho(const std::string& path, int size, double gsd_m, unsigned seed);
 
+// Rural farmland like the NAIP imagery, procedurally: a grid of parcels (each with its own tone
+// and crop-row stripes at its own angle), farmsteads, ponds and lakes (dark, smooth-edged), and a
+// road grid, with fine texture; 3-band colour GeoTIFF, same georeference as above.
+void WriteSyntheticFarmland(const std::string& path, int size, double gsd_m, unsigned seed);
+
 }  // namespace optinav::sim
