@@ -167,6 +167,23 @@ void WriteRunOutputs(const fs::path& dir, int run, nav::Mission& m, const Backgr
   // Label the end only when it is apart from the target (a reached target speaks for itself).
   mark(r.final_distance_m > 20 * m.map_gsd_m() / bg->scale ? "end" : "", kTruth,
        r.steps.back().truth, 'x');
+  // Errors over time under the map (the paths overlap at map scale when all goes well).
+  report::ChartSeries est{"estimate error", kEstimate, {}, {}, false};
+  report::ChartSeries fix{"fix error", kFix, {}, {}, true};
+  report::ChartSeries sigma{"estimate sigma", {150, 150, 150}, {}, {}, false};
+  for (const nav::StepLog& l : r.steps) {
+    est.x.push_back(l.t_s);
+    est.y.push_back(l.estimate_error_m);
+    sigma.x.push_back(l.t_s);
+    sigma.y.push_back(l.estimate_sigma_m);
+    if (l.fix_found) {
+      fix.x.push_back(l.t_s);
+      fix.y.push_back(std::min(l.fix_error_m, 100.0));  // wrong fixes pinned to the top
+    }
+  }
+  plot.chart = {sigma, est, fix};
+  plot.chart_x_label = "time (s)";
+  plot.chart_y_label = "error (m)";
   report::WriteMapPlot((dir / "path").string(), plot);
 }
 

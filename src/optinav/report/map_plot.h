@@ -27,12 +27,23 @@ struct MapMarker {
   char shape = 'o';  // 'o' circle, 'x' cross, '*' target (circle with cross)
 };
 
+// A time series for the chart under the map (e.g. localization error over time).
+struct ChartSeries {
+  std::string name;
+  Rgb colour;
+  std::vector<double> x, y;
+  bool dots = false;  // markers instead of a line
+};
+
 struct MapPlot {
   cv::Mat background;  // 8-bit grey or BGR, at plot resolution
   std::string title;
   std::vector<std::string> notes;  // lines under the title
   std::vector<MapPath> paths;
   std::vector<MapMarker> markers;
+  // Optional chart under the map (drawn when it has series).
+  std::string chart_x_label, chart_y_label;
+  std::vector<ChartSeries> chart;
 };
 
 // BGR image: background, paths, markers, then a title/legend band on top.
