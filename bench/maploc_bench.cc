@@ -15,7 +15,7 @@
 
 #include "optinav/maploc/frame_synth.h"
 #include "optinav/maploc/locator.h"
-#include "synthetic_ortho.h"
+#include "optinav/sim/synthetic_ortho.h"
 
 namespace {
 
@@ -180,7 +180,7 @@ void BM_GlobalSearch(benchmark::State& state) {
   static std::string tif;
   static const maploc::MapDatabase db = [] {
     tif = (WorkDir() / "ortho_10k.tif").string();
-    if (!fs::exists(tif)) bench::WriteSyntheticOrtho(tif, 10000, 0.1, 5);
+    if (!fs::exists(tif)) sim::WriteSyntheticOrtho(tif, 10000, 0.1, 5);
     maploc::MapBuildOptions o;
     o.frame_width = 640;
     o.frame_height = 480;

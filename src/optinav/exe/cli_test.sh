@@ -163,6 +163,36 @@ expect_error "sim non-empty output" "not empty" "$BIN" sim --duration 0.1 --scal
 [[ -s "$WORK/sim1/sim_complete.json" ]] || fail "refused sim damaged the existing dataset"
 expect_ok "sim force" "$BIN" sim --duration 0.1 --scale 0.1 --out "$WORK/sim1" --force
 
+# --- GNSS-denied missions (issue: mission).
+S=47.0178,-99.1711; G=47.0150,-99.1500
+expect_ok "mission" "$BIN" mission --map "$WORK/naip.db" --start $S --target $G --runs 2 \
+  --speed 40 --step 2 --frames-from "$NAIP/naip_20170827.tif" --out "$WORK/mission"
+for f in summary.json summary.png summary.svg paths.geojson paths.kml run_001/steps.csv \
+  run_001/path.png run_001/path.svg run_001/paths.geojson run_001/paths.kml run_002/steps.csv; do
+  [[ -s "$WORK/mission/$f" ]] || fail "mission did not write $f"
+done
+for key in '"runs": 2' '"reached": 2' '"median_fix_error_m"' '"fix_rate"' '"feature_extraction"' \
+  '"matching"' '"position_estimation"'; do
+  grep -q "$key" "$WORK/mission/summary.json" || fail "mission summary.json lacks $key"
+done
+grep -q "feature extraction" "$WORK/out.txt" || fail "mission table lacks the timing rows"
+expect_error "mission into a non-empty folder" "not empty" "$BIN" mission --map "$WORK/naip.db" \
+  --start $S --target $G --out "$WORK/mission"
+grep -q '"runs": 2' "$WORK/mission/summary.json" || fail "refused mission touched the old summary"
+expect_error "mission start outside" "start 10.000000,10.000000 is outside the map" "$BIN" mission \
+  --map "$WORK/naip.db" --start 10,10 --target $G --out "$WORK/m2"
+expect_error "mission start = target" "within the arrival radius" "$BIN" mission \
+  --map "$WORK/naip.db" --start $S --target $S --out "$WORK/m2"
+expect_error "mission speed" "speed must be in" "$BIN" mission --map "$WORK/naip.db" \
+  --start $S --target $G --speed 0 --out "$WORK/m2"
+expect_error "mission altitude" "altitude 5000 m is out of range" "$BIN" mission \
+  --map "$WORK/naip.db" --start $S --target $G --altitude 5000 --out "$WORK/m2"
+expect_error "mission bad map" "not a valid optinav map database" "$BIN" mission \
+  --map "$WORK/short.txt" --start $S --target $G --out "$WORK/m2"
+expect_error "mission bad lat,lon" "--target" "$BIN" mission --map "$WORK/naip.db" \
+  --start $S --target 47.1 --out "$WORK/m2"
+[[ ! -e "$WORK/m2" ]] || fail "a refused mission created its output folder"
+
 # A failed run never clobbers an existing output.
 echo "keep me" > "$WORK/keep.json"
 "$BIN" eval ape "$WORK/nan.txt" "$WORK/nan.txt" --json "$WORK/keep.json" >/dev/null 2>&1

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "optinav/exe/cli_common.h"
 #include "optinav/exe/commands.h"
 #include "optinav/io/text_parse.h"
 #include "optinav/maploc/frame_synth.h"
@@ -19,19 +20,6 @@ namespace {
 
 using maploc::LocateResult;
 using maploc::Prior;
-
-// "LAT,LON" -> LatLon; throws Error naming the option.
-geo::LatLon ParseLatLon(const std::string& text, const std::string& option) {
-  std::vector<std::string_view> f;
-  io::SplitFields(text, ',', &f);
-  if (f.size() != 2) throw Error("expected LAT,LON, got '" + text + "'", {.field = option});
-  const double lat = io::ParseFiniteDouble(f[0], {.field = option});
-  const double lon = io::ParseFiniteDouble(f[1], {.field = option});
-  if (std::abs(lat) > 90 || std::abs(lon) > 180) {
-    throw Error("latitude/longitude out of range: '" + text + "'", {.field = option});
-  }
-  return {lat, lon};
-}
 
 nlohmann::json ResultJson(const LocateResult& r) {
   nlohmann::json j;

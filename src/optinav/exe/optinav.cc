@@ -19,6 +19,8 @@ constexpr Command kCommands[] = {
     {"eval", optinav::RunEval, "evaluate trajectories: APE and RPE exactly as evo defines them"},
     {"map", optinav::RunMap, "orthophoto map databases: build, info, locate frames"},
     {"sim", optinav::RunSim, "simulate stereo + IMU + GNSS sequences with weather (EuRoC, AirSim)"},
+    {"mission", optinav::RunMission,
+     "GNSS-denied missions to a target over an orthophoto map (30-run experiments)"},
     {"demo", optinav::RunDemo, "run the end-to-end demo on generated data"},
 };
 

@@ -243,24 +243,30 @@ Eigen::Vector2d Locator::HeadingToPixelDirection(double heading_deg) const {
   return impl_->db.transform.AzimuthDegToPixelDirection(heading_deg);
 }
 
-LocateResult Locator::Locate(const cv::Mat& frame, const Prior& prior) {
+LocateResult Locator::Locate(const cv::Mat& frame, const Prior& prior, Order order) {
   Timer total;
   const cv::Mat gray = ToGray(frame);
-  LocateResult feat = LocateByFeatures(gray, prior);
-  if (feat.localized || !impl_->options.allow_orientation_correlation || !prior.position ||
-      gray.empty()) {
-    feat.times.total_ms = total.ElapsedSeconds() * 1e3;
-    return feat;
+  const bool oc_possible =
+      impl_->options.allow_orientation_correlation && prior.position && !gray.empty();
+  const bool oc_first = oc_possible && order == Order::kCorrelationFirst;
+  LocateResult first =
+      oc_first ? LocateByOrientationCorrelation(gray, prior) : LocateByFeatures(gray, prior);
+  if (first.localized || (!oc_first && !oc_possible)) {
+    first.times.total_ms = total.ElapsedSeconds() * 1e3;
+    return first;
   }
-  LocateResult oc = LocateByOrientationCorrelation(gray, prior);
-  if (!oc.localized) {
-    oc.reason = "features: " + feat.reason + "; orientation correlation: " + oc.reason;
+  LocateResult second =
+      oc_first ? LocateByFeatures(gray, prior) : LocateByOrientationCorrelation(gray, prior);
+  if (!second.localized) {
+    const LocateResult& feat = oc_first ? second : first;
+    const LocateResult& oc = oc_first ? first : second;
+    second.reason = "features: " + feat.reason + "; orientation correlation: " + oc.reason;
   }
-  oc.times.extraction_ms += feat.times.extraction_ms;
-  oc.times.matching_ms += feat.times.matching_ms;
-  oc.times.estimation_ms += feat.times.estimation_ms;
-  oc.times.total_ms = total.ElapsedSeconds() * 1e3;
-  return oc;
+  second.times.extraction_ms += first.times.extraction_ms;
+  second.times.matching_ms += first.times.matching_ms;
+  second.times.estimation_ms += first.times.estimation_ms;
+  second.times.total_ms = total.ElapsedSeconds() * 1e3;
+  return second;
 }
 
 LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior) {

@@ -83,8 +83,12 @@ class Locator {
   // Keeps a reference to `db`, which must outlive the locator.
   Locator(const MapDatabase& db, const LocateOptions& options = {});
   ~Locator();
+  // Which method is tried first; the other runs only when the first fails. Orientation
+  // correlation first pays when the caller knows features keep failing (an outdated map).
+  enum class Order { kFeaturesFirst, kCorrelationFirst };
   // `frame`: 8-bit grey or BGR. Never throws on bad frames: the result says why.
-  LocateResult Locate(const cv::Mat& frame, const Prior& prior = {});
+  LocateResult Locate(const cv::Mat& frame, const Prior& prior = {},
+                      Order order = Order::kFeaturesFirst);
 
   // Individual methods (for tests and benchmarks).
   LocateResult LocateByFeatures(const cv::Mat& gray, const Prior& prior);

@@ -39,6 +39,12 @@ std::string WriteFile(const std::filesystem::path& path, const std::string& text
   return path.string();
 }
 
+std::string ReadFile(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  EXPECT_TRUE(in.good()) << "cannot read " << path;
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
 }  // namespace optinav::testing
 
 int main(int argc, char** argv) {

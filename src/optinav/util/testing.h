@@ -16,4 +16,7 @@ std::filesystem::path MakeTempDir(const std::string& prefix);
 // Writes `text` to `path` (creating parent folders) and returns the path as a string.
 std::string WriteFile(const std::filesystem::path& path, const std::string& text);
 
+// The whole file as a string; fails the calling test (and returns "") when it cannot be read.
+std::string ReadFile(const std::filesystem::path& path);
+
 }  // namespace optinav::testing

@@ -16,6 +16,7 @@ class Timer {
   double ElapsedSeconds() const {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
   }
+  double ElapsedMs() const { return 1e3 * ElapsedSeconds(); }
 
  private:
   std::chrono::steady_clock::time_point start_;
