@@ -162,6 +162,13 @@ expect_error "sim non-empty output" "not empty" "$BIN" sim --duration 0.1 --scal
   --out "$WORK/sim1"
 [[ -s "$WORK/sim1/sim_complete.json" ]] || fail "refused sim damaged the existing dataset"
 expect_ok "sim force" "$BIN" sim --duration 0.1 --scale 0.1 --out "$WORK/sim1" --force
+# The weather suite: 36 complete sequences (one stereo pair each here).
+expect_ok "sim suite" "$BIN" sim suite --duration 0.01 --scale 0.05 --out "$WORK/suite"
+[[ $(ls "$WORK/suite"/*/sim_complete.json | wc -l) -eq 36 ]] || fail "sim suite: 36 sequences"
+[[ $(ls -d "$WORK/suite"/urban_* | wc -l) -eq 24 ]] || fail "sim suite: 24 urban sequences"
+grep -q '"weather": "road-snow:75"' "$WORK/suite/urban_road_snow_75/sim_complete.json" \
+  || fail "sim suite: urban_road_snow_75 weather"
+expect_error "sim suite non-empty output" "not empty" "$BIN" sim suite --out "$WORK/suite"
 
 # --- GNSS-denied missions (issue: mission).
 S=47.0178,-99.1711; G=47.0150,-99.1500
