@@ -3,8 +3,6 @@
 #include <algorithm>
 #include <cmath>
 
-#include <ceres/ordered_groups.h>
-
 #include "optinav/camera/camera.h"
 #include "optinav/util/error.h"
 
@@ -94,19 +92,23 @@ void SlidingWindowBackend::Reset() {
 }
 
 void SlidingWindowBackend::Initialize(const StateEstimate& estimate,
-                                      const std::vector<StereoObservation>& observations) {
+                                      const std::vector<StereoObservation>& observations,
+                                      double tilt_sigma_rad, double velocity_sigma_m_s) {
   Reset();
   auto state = std::make_unique<State>();
   state->t_ns = estimate.t_ns;
   state->SetPose(estimate.world_from_body);
   state->SetSpeedBias(estimate.velocity, estimate.bias);
   states_.push_back(std::move(state));
-  SetInitialPrior(states_.back().get());
+  SetInitialPrior(states_.back().get(),
+                  tilt_sigma_rad > 0 ? tilt_sigma_rad : options_.prior_tilt_sigma_rad,
+                  velocity_sigma_m_s > 0 ? velocity_sigma_m_s : options_.prior_velocity_sigma_m_s);
   AddObservations(states_.back().get(), observations);
   TriangulateNew(states_.back().get());
 }
 
-void SlidingWindowBackend::SetInitialPrior(State* state) {
+void SlidingWindowBackend::SetInitialPrior(State* state, double tilt_sigma_rad,
+                                           double velocity_sigma_m_s) {
   prior_ = LinearPrior();
   LinearPrior::Block pose;
   pose.values = state->pose;
@@ -118,8 +120,7 @@ void SlidingWindowBackend::SetInitialPrior(State* state) {
   // Tangent of the pose manifold: position (3), then a rotation vector applied on the left
   // (world frame), so its z component is yaw. Without IMU the whole pose is the gauge.
   Eigen::VectorXd sigma(options_.use_imu ? 15 : 6);
-  const double tilt =
-      options_.use_imu ? options_.prior_tilt_sigma_rad : options_.prior_yaw_sigma_rad;
+  const double tilt = options_.use_imu ? tilt_sigma_rad : options_.prior_yaw_sigma_rad;
   sigma.head<6>() << Eigen::Vector3d::Constant(options_.prior_position_sigma_m), tilt, tilt,
       options_.prior_yaw_sigma_rad;
   if (options_.use_imu) {
@@ -129,7 +130,7 @@ void SlidingWindowBackend::SetInitialPrior(State* state) {
     sb.manifold = nullptr;
     sb.x0.assign(state->speed_bias, state->speed_bias + kSpeedBiasSize);
     prior_.blocks.push_back(sb);
-    sigma.tail<9>() << Eigen::Vector3d::Constant(options_.prior_velocity_sigma_m_s),
+    sigma.tail<9>() << Eigen::Vector3d::Constant(velocity_sigma_m_s),
         Eigen::Vector3d::Constant(options_.prior_gyro_bias_sigma),
         Eigen::Vector3d::Constant(options_.prior_accel_bias_sigma);
   }
@@ -314,15 +315,22 @@ void SlidingWindowBackend::Optimize() {
   problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   ceres::Problem problem(problem_options);
-  auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
-
+  // Landmarks are added first and no explicit ordering is given: Ceres then picks the
+  // elimination set greedily in insertion order (stable, independent of addresses: a user
+  // ordering is a set of pointers, whose order would make runs differ), which selects exactly
+  // the landmarks.
+  auto reprojection =
+      BuildResiduals([](const State*) { return true; }, [](const Landmark*) { return true; });
+  int num_landmarks = 0, num_observations = 0;
+  for (const auto& spec : reprojection) {
+    if (!problem.HasParameterBlock(spec->blocks[1])) {
+      problem.AddParameterBlock(spec->blocks[1], kPointSize);
+      ++num_landmarks;
+    }
+  }
   for (const auto& s : states_) {
     problem.AddParameterBlock(s->pose, kPoseSize, const_cast<ceres::Manifold*>(PoseManifold()));
-    ordering->AddElementToGroup(s->pose, 1);
-    if (options_.use_imu) {
-      problem.AddParameterBlock(s->speed_bias, kSpeedBiasSize);
-      ordering->AddElementToGroup(s->speed_bias, 1);
-    }
+    if (options_.use_imu) problem.AddParameterBlock(s->speed_bias, kSpeedBiasSize);
   }
   if (options_.use_imu) {
     for (size_t k = 1; k < states_.size(); ++k) {
@@ -333,14 +341,7 @@ void SlidingWindowBackend::Optimize() {
                                a.speed_bias, b.pose, b.speed_bias);
     }
   }
-  int num_landmarks = 0, num_observations = 0;
-  for (auto& spec :
-       BuildResiduals([](const State*) { return true; }, [](const Landmark*) { return true; })) {
-    if (!problem.HasParameterBlock(spec->blocks[1])) {
-      problem.AddParameterBlock(spec->blocks[1], kPointSize);
-      ordering->AddElementToGroup(spec->blocks[1], 0);
-      ++num_landmarks;
-    }
+  for (auto& spec : reprojection) {
     problem.AddResidualBlock(spec->cost.release(), const_cast<ceres::LossFunction*>(spec->loss),
                              spec->blocks);
     ++num_observations;
@@ -371,7 +372,6 @@ void SlidingWindowBackend::Optimize() {
   solver_options.minimizer_progress_to_stdout = false;
   if (num_landmarks > 0) {
     solver_options.linear_solver_type = ceres::DENSE_SCHUR;
-    solver_options.linear_solver_ordering = ordering;
   } else {
     solver_options.linear_solver_type = ceres::DENSE_QR;
   }
@@ -437,13 +437,16 @@ void SlidingWindowBackend::MarginalizeOldest() {
   State* oldest = states_.front().get();
   const State* newest = states_.back().get();
   // Landmarks of the oldest state that are no longer tracked go with it.
+  // (In id order: the block order of the marginalisation must not depend on addresses.)
   std::set<const Landmark*> leaving;
   std::vector<uint64_t> leaving_ids;
+  std::vector<double*> leaving_blocks;
   for (const auto& [id, obs] : oldest->observations) {
-    const Landmark* l = landmarks_.at(id).get();
+    Landmark* l = landmarks_.at(id).get();
     if (l->initialized && l->num_states >= 2 && !newest->observations.count(id)) {
       leaving.insert(l);
       leaving_ids.push_back(id);
+      leaving_blocks.push_back(l->position);
     }
   }
   std::vector<std::unique_ptr<ResidualSpec>> owned = BuildResiduals(
@@ -475,7 +478,7 @@ void SlidingWindowBackend::MarginalizeOldest() {
   }
   std::vector<double*> marginalize{oldest->pose};
   if (options_.use_imu) marginalize.push_back(oldest->speed_bias);
-  for (const Landmark* l : leaving) marginalize.push_back(const_cast<double*>(l->position));
+  marginalize.insert(marginalize.end(), leaving_blocks.begin(), leaving_blocks.end());
   std::vector<const ResidualSpec*> specs;
   for (const auto& s : owned) specs.push_back(s.get());
   prior_ = Marginalize(

@@ -112,8 +112,10 @@ class SlidingWindowBackend {
   SlidingWindowBackend(const BackendOptions& options, const RigExtrinsics& rig);
   ~SlidingWindowBackend();
 
-  // Starts the window with the first state; the prior fixes the gauge around it.
-  void Initialize(const StateEstimate& state, const std::vector<StereoObservation>& observations);
+  // Starts the window with the first state; the prior fixes the gauge around it. Negative
+  // sigmas take the options' prior_tilt_sigma_rad / prior_velocity_sigma_m_s.
+  void Initialize(const StateEstimate& state, const std::vector<StereoObservation>& observations,
+                  double tilt_sigma_rad = -1, double velocity_sigma_m_s = -1);
   bool initialized() const { return !states_.empty(); }
   void Reset();
 
@@ -146,7 +148,7 @@ class SlidingWindowBackend {
   void RemoveOutliers();
   void MarginalizeOldest();
   void RelinearizeBiases();
-  void SetInitialPrior(State* state);
+  void SetInitialPrior(State* state, double tilt_sigma_rad, double velocity_sigma_m_s);
   State* AnchorFor(int64_t t_ns, ImuPreintegration* anchor_to_t) const;
   const ceres::Manifold* ManifoldOf(const double* block) const;
   int SizeOf(const double* block) const;

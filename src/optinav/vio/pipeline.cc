@@ -1,0 +1,169 @@
+#include "optinav/vio/pipeline.h"
+
+#include <algorithm>
+#include <thread>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "optinav/io/euroc_dataset.h"
+#include "optinav/util/error.h"
+#include "optinav/util/logging.h"
+#include "optinav/util/queue.h"
+
+namespace optinav::vio {
+
+namespace {
+
+struct Packet {
+  int64_t t_ns = 0;
+  cv::Mat left, right;
+  std::vector<TimedImuSample> imu;  // samples to add before the frame
+};
+
+cv::Mat LoadGrey(const std::string& path, const io::CameraCalibration& calibration, bool* missing) {
+  cv::Mat image = cv::imread(path, cv::IMREAD_GRAYSCALE);
+  if (image.empty()) {
+    *missing = true;
+    return image;
+  }
+  if (image.cols != calibration.width || image.rows != calibration.height)
+    throw Error("image is " + std::to_string(image.cols) + "x" + std::to_string(image.rows) +
+                    " but sensor.yaml resolution is " + std::to_string(calibration.width) + "x" +
+                    std::to_string(calibration.height),
+                {.file = path, .field = "resolution"});
+  return image;
+}
+
+}  // namespace
+
+Trajectory EstimatesToTrajectory(const std::vector<FrameEstimate>& estimates,
+                                 const std::optional<Rigid3d>& body_from_cam) {
+  Trajectory t;
+  t.Reserve(estimates.size(), true);
+  for (const FrameEstimate& e : estimates)
+    t.Add(e.state.t_ns,
+          body_from_cam ? e.state.world_from_body * *body_from_cam : e.state.world_from_body);
+  return t;
+}
+
+VioRunResult RunVioOnEuroc(const std::string& dataset_dir, const VioRunOptions& options) {
+  if (const std::string e = options.vio.Check(); !e.empty()) throw Error(e, {.field = "config"});
+  io::EurocOpenOptions open;
+  open.drop_missing_images = options.skip_missing_images;
+  const io::EurocDataset ds = io::OpenEurocDataset(dataset_dir, open);
+  if (!ds.cam0 || !ds.cam1)
+    throw Error("VIO needs a stereo pair: mav0/cam0 and mav0/cam1", {.file = ds.mav0_dir});
+  const bool use_imu = options.vio.mode == VioMode::kStereoImu;
+  if (use_imu && (ds.imu_csv.empty() || !ds.imu_calibration))
+    throw Error("stereo-imu mode needs mav0/imu0 (use --mode stereo without IMU)",
+                {.file = ds.mav0_dir});
+  const camera::StereoRig rig = io::ToStereoRig(ds.cam0->calibration, ds.cam1->calibration);
+
+  VioRunResult result;
+  result.body_from_cam0 = ds.cam0->calibration.body_from_cam;
+  ImuNoise noise;
+  std::vector<TimedImuSample> imu;
+  if (use_imu) {
+    const io::ImuCalibration& c = *ds.imu_calibration;
+    noise.gyro_noise_density = c.gyroscope_noise_density;
+    noise.accel_noise_density = c.accelerometer_noise_density;
+    noise.gyro_random_walk = c.gyroscope_random_walk;
+    noise.accel_random_walk = c.accelerometer_random_walk;
+    if (c.body_from_imu.translation.norm() > 0.01)
+      spdlog::warn("vio: imu0 T_BS has a {:.3f} m lever arm; it is ignored (IMU taken as body)",
+                   c.body_from_imu.translation.norm());
+    const Eigen::Quaterniond r = c.body_from_imu.rotation;
+    for (const io::ImuSample& s : io::ReadImuCsv(ds.imu_csv))
+      imu.push_back({s.t_ns, r * s.gyro_rad_s, r * s.accel_m_s2});
+  }
+
+  // Pair left and right images by stamp.
+  struct Pair {
+    int64_t t_ns;
+    std::string left, right;
+  };
+  std::vector<Pair> pairs;
+  const auto& rights = ds.cam1->images;
+  for (const io::ImageEntry& l : ds.cam0->images) {
+    const auto it = std::lower_bound(rights.begin(), rights.end(), l.t_ns - 1'000'000,
+                                     [](const io::ImageEntry& e, int64_t t) { return e.t_ns < t; });
+    if (it == rights.end() || std::llabs(it->t_ns - l.t_ns) > 1'000'000) {
+      ++result.frames_unpaired;
+      continue;
+    }
+    pairs.push_back({l.t_ns, l.path, it->path});
+  }
+  if (result.frames_unpaired > 0)
+    spdlog::warn("vio: {} left frames without a right frame within 1 ms are skipped",
+                 result.frames_unpaired);
+  if (options.max_frames > 0 && pairs.size() > options.max_frames) pairs.resize(options.max_frames);
+  result.frames_total = pairs.size();
+
+  // The loader: builds packets in order; `emit` returns false to stop.
+  auto load = [&](const std::function<bool(Packet)>& emit) {
+    size_t imu_next = 0;
+    for (const Pair& p : pairs) {
+      Packet packet;
+      packet.t_ns = p.t_ns;
+      bool missing = false;
+      packet.left = LoadGrey(p.left, ds.cam0->calibration, &missing);
+      if (!missing) packet.right = LoadGrey(p.right, ds.cam1->calibration, &missing);
+      if (missing) {
+        if (!options.skip_missing_images)
+          throw Error("cannot read image", {.file = packet.left.empty() ? p.left : p.right});
+        spdlog::warn("vio: cannot read image of frame {} ns, frame skipped", p.t_ns);
+        packet.left.release();
+      }
+      // IMU up to a little after the frame (interpolation at the frame time needs the next one).
+      while (imu_next < imu.size() && imu[imu_next].t_ns <= p.t_ns + 20'000'000)
+        packet.imu.push_back(imu[imu_next++]);
+      if (!emit(std::move(packet))) return;
+    }
+  };
+
+  VioEstimator estimator(rig, result.body_from_cam0, noise, options.vio);
+  auto consume = [&](Packet& packet) {
+    for (const TimedImuSample& s : packet.imu) estimator.AddImu(s);
+    if (packet.left.empty()) return;
+    ++result.frames_processed;
+    if (auto e = estimator.ProcessFrame(packet.t_ns, packet.left, packet.right)) {
+      if (result.first_init_kind.empty()) result.first_init_kind = estimator.last_init_kind();
+      result.estimates.push_back(*e);
+    }
+  };
+
+  if (!options.threaded) {
+    load([&](Packet p) {
+      consume(p);
+      return true;
+    });
+  } else {
+    ThreadSafeQueue<Packet> queue(8);
+    std::exception_ptr loader_error;
+    std::thread loader([&] {
+      try {
+        load([&](Packet p) { return queue.Push(std::move(p)); });
+      } catch (...) {
+        loader_error = std::current_exception();
+      }
+      queue.Close();
+    });
+    try {
+      while (auto p = queue.Pop()) consume(*p);
+    } catch (...) {
+      queue.Close();
+      loader.join();
+      throw;
+    }
+    loader.join();
+    if (loader_error) std::rethrow_exception(loader_error);
+  }
+  estimator.Finish();
+  result.lost = estimator.lost_intervals();
+  result.initializations = estimator.initializations();
+  for (const std::string& stage : estimator.timing().Stages())
+    result.timing[stage] = estimator.timing().Summary(stage);
+  return result;
+}
+
+}  // namespace optinav::vio
