@@ -175,7 +175,7 @@ grep -q "dropped 1 listed image" "$WORK/err.txt" || fail "vio: missing image not
 clip; t_stop=$(( $(sed -n 2p "$MICRO/mav0/imu0/data.csv" | cut -d, -f1) + 2000000000 ))
 awk -F, -v t="$t_stop" '/^#/ || $1 < t' "$MICRO/mav0/imu0/data.csv" > "$WORK/clip/mav0/imu0/data.csv"
 expect_ok "vio IMU that stops" "$BIN" vio --dataset "$WORK/clip" --out "$WORK/x.tum" --stats "$WORK/stop.json"
-grep -q 'IMU stopped' "$WORK/stop.json" || fail "vio: IMU stop not reported as a lost interval"
+grep -q 'IMU gap' "$WORK/stop.json" || fail "vio: IMU stop not reported as a lost interval"
 [[ $(grep -vc '^#' "$WORK/x.tum") -ge 20 ]] || fail "vio: poses before the IMU stop missing"
 
 # --- The demo.

@@ -197,9 +197,11 @@ void VioEstimator::AddImu(const TimedImuSample& s) {
 
 std::optional<std::string> VioEstimator::ImuProblem(int64_t t0_ns, int64_t t1_ns) const {
   const int64_t max_gap = static_cast<int64_t>(options_.max_imu_gap_s * 1e9);
-  if (imu_.empty() || imu_.back().t_ns < t1_ns - max_gap)
-    return "no IMU data up to the frame (IMU stopped)";
-  if (imu_.front().t_ns > t0_ns + max_gap) return "no IMU data since the previous frame";
+  if (imu_.empty()) return "IMU gap: no IMU data (IMU stopped)";
+  if (imu_.back().t_ns < t1_ns - max_gap)
+    return fmt::format("IMU gap: no IMU sample in the {:.3f} s before the frame (IMU stopped?)",
+                       (t1_ns - imu_.back().t_ns) * 1e-9);
+  if (imu_.front().t_ns > t0_ns + max_gap) return "IMU gap: no IMU data since the previous frame";
   int64_t prev = t0_ns;
   for (const TimedImuSample& s : imu_) {
     if (s.t_ns <= t0_ns) {
@@ -388,8 +390,8 @@ std::optional<FrameEstimate> VioEstimator::ProcessFrame(int64_t t_ns, const cv::
     }
   } else {
     weak_since_s_ = -1;
+    last_good_ = estimate;  // lost intervals start at the last well-tracked frame
   }
-  last_good_ = estimate;
   return FrameEstimate{estimate, features.keyframe};
 }
 

@@ -1,10 +1,13 @@
 #include "optinav/vio/pipeline.h"
 
 #include <cstdio>
+#include <map>
 
 #include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
 
 #include "optinav/eval/metrics.h"
+#include "optinav/io/euroc_dataset.h"
 #include "optinav/io/trajectory_io.h"
 #include "optinav/util/testing.h"
 
@@ -83,6 +86,111 @@ TEST(Pipeline, StereoOnlyModeRuns) {
       "< 0.05)\n",
       moved);
   EXPECT_LT(moved, 0.05);
+}
+
+}  // namespace
+}  // namespace optinav::vio
+
+namespace optinav::vio {
+namespace {
+
+// Drives the estimator directly with the real clip and injected failures.
+class FailureTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    io::EurocOpenOptions open;
+    open.drop_missing_images = true;
+    ds_ = io::OpenEurocDataset(Micro(), open);
+    rig_ = io::ToStereoRig(ds_.cam0->calibration, ds_.cam1->calibration);
+    for (const io::ImuSample& s : io::ReadImuCsv(ds_.imu_csv))
+      imu_.push_back({s.t_ns, s.gyro_rad_s, s.accel_m_s2});
+    std::map<int64_t, std::string> rights;
+    for (const auto& r : ds_.cam1->images) rights[r.t_ns] = r.path;
+    for (const auto& l : ds_.cam0->images)
+      if (rights.count(l.t_ns)) frames_.push_back({l.t_ns, l.path, rights[l.t_ns]});
+  }
+  struct Frame {
+    int64_t t_ns;
+    std::string left, right;
+  };
+  // Runs frames [0, n) with `black(i)` frames replaced by black images, IMU samples in
+  // [imu_gap_from, imu_gap_to) removed, and `t_shift_ns` added to frames from `shift_from` on.
+  std::vector<std::optional<FrameEstimate>> Run(VioEstimator* e, size_t n,
+                                                const std::function<bool(size_t)>& black,
+                                                int64_t imu_gap_from = 0, int64_t imu_gap_to = 0) {
+    std::vector<std::optional<FrameEstimate>> out;
+    size_t k = 0;
+    const cv::Mat dark(rig_.left.height, rig_.left.width, CV_8UC1, cv::Scalar(0));
+    for (size_t i = 0; i < n && i < frames_.size(); ++i) {
+      const int64_t t = frames_[i].t_ns;
+      for (; k < imu_.size() && imu_[k].t_ns <= t + 20'000'000; ++k)
+        if (imu_[k].t_ns < imu_gap_from || imu_[k].t_ns >= imu_gap_to) e->AddImu(imu_[k]);
+      const bool b = black(i);
+      const cv::Mat l = b ? dark : cv::imread(frames_[i].left, cv::IMREAD_GRAYSCALE);
+      const cv::Mat r = b ? dark : cv::imread(frames_[i].right, cv::IMREAD_GRAYSCALE);
+      out.push_back(e->ProcessFrame(t, l, r));
+    }
+    e->Finish();
+    return out;
+  }
+  io::EurocDataset ds_;
+  camera::StereoRig rig_;
+  std::vector<TimedImuSample> imu_;
+  std::vector<Frame> frames_;
+};
+
+TEST_F(FailureTest, BlackFramesAreALostIntervalThenReinitialisation) {
+  VioEstimator e(rig_, ds_.cam0->calibration.body_from_cam, ImuNoise{}, VioOptions{});
+  // Frames 30..59 (1.5 s) black.
+  const auto out = Run(&e, 80, [](size_t i) { return i >= 30 && i < 60; });
+  ASSERT_EQ(e.lost_intervals().size(), 1u);
+  const LostInterval& lost = e.lost_intervals()[0];
+  std::printf(
+      "black frames 30..59: lost %.2f s .. %.2f s (%s), %d initialisations, last pose "
+      "%s\n",
+      (lost.start_ns - frames_[0].t_ns) * 1e-9, (lost.end_ns - frames_[0].t_ns) * 1e-9,
+      lost.reason.c_str(), e.initializations(), out.back() ? "estimated" : "missing");
+  EXPECT_NE(lost.reason.find("tracked landmarks"), std::string::npos);
+  EXPECT_EQ(lost.end_ns, frames_[60].t_ns);  // re-initialised on the first good frame
+  EXPECT_EQ(e.initializations(), 2);
+  ASSERT_TRUE(out.back().has_value());
+  // The re-initialised track continues from the last good position (nearly still clip).
+  EXPECT_LT(out.back()->state.world_from_body.translation.norm(), 0.05);
+  // The interval starts at the last well-tracked frame, before the black ones.
+  EXPECT_LT(lost.start_ns, frames_[30].t_ns);
+}
+
+TEST_F(FailureTest, ImuGapIsALostInterval) {
+  VioEstimator e(rig_, ds_.cam0->calibration.body_from_cam, ImuNoise{}, VioOptions{});
+  const int64_t gap_from = frames_[30].t_ns - 60'000'000, gap_to = frames_[30].t_ns + 40'000'000;
+  const auto out = Run(
+      &e, 60, [](size_t) { return false; }, gap_from, gap_to);
+  ASSERT_EQ(e.lost_intervals().size(), 1u);
+  std::printf("IMU gap of 0.1 s: lost interval %.3f .. %.3f s '%s'\n",
+              (e.lost_intervals()[0].start_ns - frames_[0].t_ns) * 1e-9,
+              (e.lost_intervals()[0].end_ns - frames_[0].t_ns) * 1e-9,
+              e.lost_intervals()[0].reason.c_str());
+  EXPECT_NE(e.lost_intervals()[0].reason.find("IMU gap"), std::string::npos);
+  EXPECT_TRUE(out.back().has_value());
+}
+
+TEST_F(FailureTest, TimestampJumpAndRepeatedStamps) {
+  VioEstimator e(rig_, ds_.cam0->calibration.body_from_cam, ImuNoise{}, VioOptions{});
+  const cv::Mat l = cv::imread(frames_[20].left, cv::IMREAD_GRAYSCALE);
+  const cv::Mat r = cv::imread(frames_[20].right, cv::IMREAD_GRAYSCALE);
+  Run(&e, 25, [](size_t) { return false; });
+  // The same stamp again: skipped, no crash.
+  EXPECT_FALSE(e.ProcessFrame(frames_[24].t_ns, l, r).has_value());
+  // A jump of 2 s (the IMU continues): a lost interval, then a fresh start.
+  for (const TimedImuSample& s : imu_)
+    if (s.t_ns > frames_[24].t_ns + 20'000'000 && s.t_ns <= frames_[24].t_ns + 2'100'000'000)
+      e.AddImu(s);
+  e.ProcessFrame(frames_[24].t_ns + 2'000'000'000, l, r);
+  e.Finish();
+  ASSERT_EQ(e.lost_intervals().size(), 1u);
+  std::printf("2 s frame jump: lost interval '%s'\n", e.lost_intervals()[0].reason.c_str());
+  EXPECT_NE(e.lost_intervals()[0].reason.find("frame time jump"), std::string::npos);
+  EXPECT_EQ(e.initializations(), 2);
 }
 
 }  // namespace
