@@ -61,11 +61,11 @@ VioOptions LoadVioOptions(const std::string& path) {
     o.mode = *parsed;
   }
   if (const YAML::Node f = root["frontend"]) {
-    check_keys(f,
-               {"max_features", "grid_cols", "grid_rows", "min_distance_px", "quality_level",
-                "klt_window_px", "klt_pyramid_levels", "klt_max_iterations", "forward_backward_px",
-                "ransac_px", "epipolar_px", "border_px", "keyframe_max_interval_s",
-                "keyframe_min_tracked_ratio", "keyframe_min_parallax_px"});
+    check_keys(
+        f, {"max_features", "grid_cols", "grid_rows", "min_distance_px", "quality_level",
+            "klt_window_px", "stereo_window_px", "klt_pyramid_levels", "klt_max_iterations",
+            "forward_backward_px", "ransac_px", "epipolar_px", "border_px",
+            "keyframe_max_interval_s", "keyframe_min_tracked_ratio", "keyframe_min_parallax_px"});
     FrontendOptions& x = o.frontend;
     x.max_features = YamlGetOr(file, f, "max_features", x.max_features);
     x.grid_cols = YamlGetOr(file, f, "grid_cols", x.grid_cols);
@@ -73,6 +73,7 @@ VioOptions LoadVioOptions(const std::string& path) {
     x.min_distance_px = YamlGetOr(file, f, "min_distance_px", x.min_distance_px);
     x.quality_level = YamlGetOr(file, f, "quality_level", x.quality_level);
     x.klt_window_px = YamlGetOr(file, f, "klt_window_px", x.klt_window_px);
+    x.stereo_window_px = YamlGetOr(file, f, "stereo_window_px", x.stereo_window_px);
     x.klt_pyramid_levels = YamlGetOr(file, f, "klt_pyramid_levels", x.klt_pyramid_levels);
     x.klt_max_iterations = YamlGetOr(file, f, "klt_max_iterations", x.klt_max_iterations);
     x.forward_backward_px = YamlGetOr(file, f, "forward_backward_px", x.forward_backward_px);
@@ -176,6 +177,7 @@ VioEstimator::VioEstimator(const camera::StereoRig& rig, const Rigid3d& body_fro
       backend_(WithMode(options.backend, options, imu_noise), MakeExtrinsics(rig, body_from_cam0)) {
   const std::string problem = options_.Check();
   OPTINAV_CHECK_MSG(problem.empty(), problem);
+  frontend_.set_timing(&timing_);
 }
 
 VioEstimator::~VioEstimator() = default;
@@ -354,7 +356,7 @@ std::optional<FrameEstimate> VioEstimator::ProcessFrame(int64_t t_ns, const cv::
   FrontendOutput features;
   {
     ScopedTimer timer(timing_, "frontend");
-    features = frontend_.Process(t_ns, left, right, cur_from_prev);
+    features = frontend_.Process(t_ns, left, right, cur_from_prev, !backend_.initialized());
   }
   prev_frame_ns_ = t_ns;
   if (backend_.initialized() && problem) Lose(t_ns, *problem);

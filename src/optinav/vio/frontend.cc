@@ -27,6 +27,7 @@ std::string FrontendOptions::Check() const {
   if (!(min_distance_px > 0)) return "min_distance_px must be > 0";
   if (!(quality_level > 0 && quality_level < 1)) return "quality_level must be in (0, 1)";
   if (klt_window_px < 5) return "klt_window_px must be >= 5";
+  if (stereo_window_px < 5) return "stereo_window_px must be >= 5";
   if (klt_pyramid_levels < 0 || klt_pyramid_levels > 6) return "klt_pyramid_levels must be 0..6";
   if (klt_max_iterations < 1) return "klt_max_iterations must be >= 1";
   if (!(forward_backward_px > 0)) return "forward_backward_px must be > 0";
@@ -89,7 +90,7 @@ void StereoFrontend::Detect(const cv::Mat& image, std::vector<Track>* tracks) {
                               options_.min_distance_px, mask(cell), 3);
       for (const cv::Point2f& c : corners) {
         const cv::Point2f p(c.x + cell.x, c.y + cell.y);
-        tracks->push_back({next_id_++, p, std::nullopt});
+        tracks->push_back({next_id_++, p, std::nullopt, 0});
         cv::circle(mask, p, static_cast<int>(options_.min_distance_px), cv::Scalar(0), -1);
         --budget;
       }
@@ -100,10 +101,16 @@ void StereoFrontend::Detect(const cv::Mat& image, std::vector<Track>* tracks) {
 void StereoFrontend::MatchStereo(const std::vector<cv::Mat>& left_pyramid,
                                  const std::vector<cv::Mat>& right_pyramid,
                                  std::vector<Track>* tracks_in_out,
-                                 std::vector<std::optional<cv::Point2f>>* right) {
-  std::vector<Track>& tracks = *tracks_in_out;
-  right->assign(tracks.size(), std::nullopt);
-  if (tracks.empty()) return;
+                                 std::vector<std::optional<cv::Point2f>>* right, bool all) {
+  std::vector<Track>& all_tracks = *tracks_in_out;
+  right->assign(all_tracks.size(), std::nullopt);
+  std::vector<size_t> subset;
+  for (size_t i = 0; i < all_tracks.size(); ++i)
+    if (all || (!all_tracks[i].stereo_offset && all_tracks[i].stereo_failures < 2))
+      subset.push_back(i);
+  if (subset.empty()) return;
+  std::vector<Track> tracks;
+  for (size_t i : subset) tracks.push_back(all_tracks[i]);
   std::vector<cv::Point2f> left_pts, right_pts, back_pts;
   // Initial guess: the track's last disparity, else the left ray at the typical depth.
   for (const Track& t : tracks) {
@@ -120,7 +127,7 @@ void StereoFrontend::MatchStereo(const std::vector<cv::Mat>& left_pyramid,
   }
   std::vector<uchar> status, back_status;
   std::vector<float> err;
-  const cv::Size win(options_.klt_window_px, options_.klt_window_px);
+  const cv::Size win(options_.stereo_window_px, options_.stereo_window_px);
   const cv::TermCriteria term(cv::TermCriteria::COUNT | cv::TermCriteria::EPS,
                               options_.klt_max_iterations, 0.01);
   cv::calcOpticalFlowPyrLK(left_pyramid, right_pyramid, left_pts, right_pts, status, err, win,
@@ -131,7 +138,8 @@ void StereoFrontend::MatchStereo(const std::vector<cv::Mat>& left_pyramid,
   const double focal = rig_.left.fx;
   std::vector<double> depths;
   for (size_t i = 0; i < tracks.size(); ++i) {
-    tracks[i].stereo_offset.reset();
+    all_tracks[subset[i]].stereo_offset.reset();
+    ++all_tracks[subset[i]].stereo_failures;  // reset below on success
     if (!status[i] || !back_status[i]) continue;
     if (cv::norm(back_pts[i] - left_pts[i]) > options_.forward_backward_px) continue;
     if (!rig_.right.InImage(ToEigen(right_pts[i]), options_.border_px)) continue;
@@ -146,8 +154,9 @@ void StereoFrontend::MatchStereo(const std::vector<cv::Mat>& left_pyramid,
     const auto point =
         camera::TriangulateTwoView(Rigid3d::Identity(), rig_.right_from_left, nl, nr);
     if (!point || point->z() <= 0) continue;
-    (*right)[i] = right_pts[i];
-    tracks[i].stereo_offset = right_pts[i] - left_pts[i];
+    (*right)[subset[i]] = right_pts[i];
+    all_tracks[subset[i]].stereo_offset = right_pts[i] - left_pts[i];
+    all_tracks[subset[i]].stereo_failures = 0;
     depths.push_back(point->z());
   }
   if (!depths.empty()) {
@@ -185,16 +194,25 @@ bool StereoFrontend::DecideKeyframe(int64_t t_ns, const std::vector<Track>& trac
 }
 
 FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const cv::Mat& right,
-                                       const std::optional<Eigen::Quaterniond>& cur_from_prev) {
+                                       const std::optional<Eigen::Quaterniond>& cur_from_prev,
+                                       bool match_all_stereo) {
   OPTINAV_CHECK(left.type() == CV_8UC1 && right.type() == CV_8UC1);
   FrontendOutput out;
   out.t_ns = t_ns;
   const cv::Size win(options_.klt_window_px, options_.klt_window_px);
   const cv::TermCriteria term(cv::TermCriteria::COUNT | cv::TermCriteria::EPS,
                               options_.klt_max_iterations, 0.01);
+  Timer stage;
+  auto lap = [&](const char* name) {
+    if (timing_) timing_->Add(name, stage.ElapsedSeconds());
+    stage.Restart();
+  };
   std::vector<cv::Mat> left_pyramid, right_pyramid;
-  cv::buildOpticalFlowPyramid(left, left_pyramid, win, options_.klt_pyramid_levels);
-  cv::buildOpticalFlowPyramid(right, right_pyramid, win, options_.klt_pyramid_levels);
+  const int pad = std::max(options_.klt_window_px, options_.stereo_window_px);
+  cv::buildOpticalFlowPyramid(left, left_pyramid, cv::Size(pad, pad), options_.klt_pyramid_levels);
+  cv::buildOpticalFlowPyramid(right, right_pyramid, cv::Size(pad, pad),
+                              options_.klt_pyramid_levels);
+  lap("frontend.pyramid");
 
   // 1. Temporal tracking with the forward-backward check.
   std::vector<Track> tracks;
@@ -225,9 +243,11 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
         ++out.stats.rejected_fb;
         continue;
       }
-      kept.push_back({tracks_[i].id, cur_pts[i], tracks_[i].stereo_offset});
+      kept.push_back(
+          {tracks_[i].id, cur_pts[i], tracks_[i].stereo_offset, tracks_[i].stereo_failures});
       kept_prev.push_back(prev_pts[i]);
     }
+    lap("frontend.track");
     // 2. Geometric RANSAC on undistorted pixels when there is motion to test.
     std::vector<double> flow;
     for (size_t i = 0; i < kept.size(); ++i) flow.push_back(cv::norm(kept[i].pixel - kept_prev[i]));
@@ -261,6 +281,7 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
       }
     }
     tracks = std::move(kept);
+    lap("frontend.ransac");
   }
   out.stats.tracked = static_cast<int>(tracks.size());
 
@@ -268,10 +289,14 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
   const size_t before = tracks.size();
   Detect(left, &tracks);
   out.stats.detected = static_cast<int>(tracks.size() - before);
+  lap("frontend.detect");
 
-  // 4. Stereo matching.
+  // 4. Keyframe decision (on the left tracks), then stereo matching: every track at keyframes
+  // (the backend keeps only keyframe observations and the newest frame's), else only tracks
+  // never matched yet (new landmarks need their first stereo triangulation).
+  out.keyframe = DecideKeyframe(t_ns, tracks);
   std::vector<std::optional<cv::Point2f>> right_pts;
-  MatchStereo(left_pyramid, right_pyramid, &tracks, &right_pts);
+  MatchStereo(left_pyramid, right_pyramid, &tracks, &right_pts, out.keyframe || match_all_stereo);
   for (size_t i = 0; i < tracks.size(); ++i) {
     StereoObservation obs;
     obs.track_id = tracks[i].id;
@@ -282,9 +307,7 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
     }
     out.observations.push_back(obs);
   }
-
-  // 5. Keyframe decision.
-  out.keyframe = DecideKeyframe(t_ns, tracks);
+  lap("frontend.stereo");
   tracks_ = std::move(tracks);
   prev_pyramid_ = std::move(left_pyramid);
   return out;

@@ -37,7 +37,7 @@ TEST(Frontend, TracksAndMatchesOnEuroc) {
     const std::string right_path = r->second;
     const cv::Mat right = cv::imread(right_path, cv::IMREAD_GRAYSCALE);
     if (right.empty()) continue;
-    const FrontendOutput out = frontend.Process(l.t_ns, left, right, std::nullopt);
+    const FrontendOutput out = frontend.Process(l.t_ns, left, right, std::nullopt, true);
     ++frames;
     keyframes += out.keyframe ? 1 : 0;
     if (frames > 1) tracked += out.stats.tracked, previous += 150;
