@@ -125,6 +125,44 @@ expect_ok "locate list" "$BIN" map locate --map "$WORK/naip.db" --images-from "$
 [[ $(wc -l < "$WORK/out.txt") -eq 2 ]] || fail "locate list: expected 2 JSON lines"
 grep -q 'missing.png' "$WORK/out.txt" || fail "locate list lacks the missing image's line"
 
+# --- Simulator (issue 4): tiny images and short durations keep this fast.
+expect_ok "sim drone euroc with weather and gnss options" "$BIN" sim --world urban --route drone \
+  --duration 1 --scale 0.1 --weather fog:50 --gnss-rate 10 --gnss-sigma 0.5 \
+  --gnss-outliers 0.1:20 --gnss-outage 0.2:0.3 --seed 3 --out "$WORK/sim1"
+for f in mav0/cam0/data.csv mav0/cam1/sensor.yaml mav0/imu0/data.csv mav0/gnss0/data.csv \
+  mav0/gnss0/llh.csv mav0/state_groundtruth_estimate0/data.csv sim_complete.json; do
+  [[ -s "$WORK/sim1/$f" ]] || fail "sim did not write $f"
+done
+# GNSS at 10 Hz for 1 s minus the 0.3 s outage: 11 epochs - 3 = 8 rows plus the header.
+[[ $(wc -l < "$WORK/sim1/mav0/gnss0/data.csv") -eq 9 ]] || fail "sim gnss rows with outage"
+expect_ok "sim car airsim" "$BIN" sim --route car --format airsim --duration 0.5 --scale 0.1 \
+  --weather snow:25 --out "$WORK/sim2"
+head -n 1 "$WORK/sim2/airsim_rec.txt" | grep -qP '^VehicleName\tTimeStamp\tPOS_X\tPOS_Y\tPOS_Z\tQ_W\tQ_X\tQ_Y\tQ_Z\tThrottle\tSteering\tBrake\tGear\tHandbrake\tRPM\tSpeed\tImageFile$' \
+  || fail "airsim_rec.txt header"
+grep -q 'img_front_left_0_[0-9]*.png;img_front_right_0_[0-9]*.png' "$WORK/sim2/airsim_rec.txt" \
+  || fail "airsim image column"
+[[ -s "$WORK/sim2/camera_info.csv" && -d "$WORK/sim2/images" ]] || fail "airsim layout"
+expect_ok "sim ortho world" "$BIN" sim --world "ortho:$NAIP/naip_20170827.tif" --route drone \
+  --altitude 120 --duration 0.3 --scale 0.1 --out "$WORK/sim3"
+expect_error "sim unknown world" "unknown world 'mars'" "$BIN" sim --world mars --out "$WORK/simx"
+expect_error "sim unknown weather" "unknown weather 'hail'" "$BIN" sim --weather hail:20 \
+  --out "$WORK/simx"
+expect_error "sim intensity out of range" "outside 0-100" "$BIN" sim --weather fog:150 \
+  --out "$WORK/simx"
+expect_error "sim road weather on terrain" "needs the urban world" "$BIN" sim --world terrain \
+  --weather road-snow:50 --duration 0.1 --out "$WORK/simx"
+expect_error "sim ortho not georeferenced" "georeferenced" "$BIN" sim \
+  --world "ortho:$DATA/images/graf1.png" --route drone --out "$WORK/simx"
+expect_error "sim bad outliers" "--gnss-outliers" "$BIN" sim --gnss-outliers 0.1 --out "$WORK/simx"
+expect_error "sim bad outage" "--gnss-outage" "$BIN" sim --gnss-outage 5 --out "$WORK/simx"
+expect_error "sim bad format" "unknown format" "$BIN" sim --format bag --out "$WORK/simx"
+expect_error "sim bad scale" "--scale" "$BIN" sim --scale 0 --out "$WORK/simx"
+[[ ! -e "$WORK/simx" ]] || fail "a failed sim created its output folder"
+expect_error "sim non-empty output" "not empty" "$BIN" sim --duration 0.1 --scale 0.1 \
+  --out "$WORK/sim1"
+[[ -s "$WORK/sim1/sim_complete.json" ]] || fail "refused sim damaged the existing dataset"
+expect_ok "sim force" "$BIN" sim --duration 0.1 --scale 0.1 --out "$WORK/sim1" --force
+
 # A failed run never clobbers an existing output.
 echo "keep me" > "$WORK/keep.json"
 "$BIN" eval ape "$WORK/nan.txt" "$WORK/nan.txt" --json "$WORK/keep.json" >/dev/null 2>&1

@@ -18,6 +18,7 @@ struct Command {
 constexpr Command kCommands[] = {
     {"eval", optinav::RunEval, "evaluate trajectories: APE and RPE exactly as evo defines them"},
     {"map", optinav::RunMap, "orthophoto map databases: build, info, locate frames"},
+    {"sim", optinav::RunSim, "simulate stereo + IMU + GNSS sequences with weather (EuRoC, AirSim)"},
     {"vio", optinav::RunVio, "stereo visual-inertial odometry on a EuRoC/ASL dataset"},
     {"demo", optinav::RunDemo, "run the end-to-end demo on generated data"},
 };

@@ -1,0 +1,191 @@
+#include "optinav/sim/renderer.h"
+
+#include <algorithm>
+#include <cstdio>
+
+#include <gtest/gtest.h>
+#include <opencv2/core/utility.hpp>
+#include <opencv2/features2d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "optinav/sim/rig.h"
+
+namespace optinav::sim {
+namespace {
+
+struct Scene {
+  World world;
+  BodyTrajectory route;
+};
+
+const Scene& Urban() {
+  static const Scene* s = [] {
+    WorldOptions o;
+    o.seed = 5;
+    World w = MakeWorld(o);
+    BodyTrajectory car = MakeCarTrajectory(CarRouteOptions::Urban(), w.ground_height, 0);
+    return new Scene{std::move(w), std::move(car)};
+  }();
+  return *s;
+}
+
+const Scene& Terrain() {
+  static const Scene* s = [] {
+    WorldOptions o;
+    o.kind = WorldKind::kTerrain;
+    o.seed = 5;
+    World w = MakeWorld(o);
+    BodyTrajectory car = MakeCarTrajectory(CarRouteOptions::Terrain(), w.ground_height, 0);
+    return new Scene{std::move(w), std::move(car)};
+  }();
+  return *s;
+}
+
+Rigid3d Pose(const Scene& s, double t_s, const Rigid3d& body_from_cam) {
+  return s.route.At(static_cast<int64_t>(t_s * 1e9)).world_from_body * body_from_cam;
+}
+
+TEST(Renderer, WorldsHaveEnoughCornersForFeatureTracking) {
+  const SensorRig rig = DroneRig();  // 752x480
+  auto fast = cv::FastFeatureDetector::create(20);
+  auto orb = cv::ORB::create(1000);
+  for (const auto& [name, scene] : {std::pair{"urban", &Urban()}, {"terrain", &Terrain()}}) {
+    const Renderer r(scene->world);
+    for (double t : {10.0, 40.0, 70.0}) {
+      cv::Mat img, gray;
+      r.Render(rig.left, Pose(*scene, t, CarRig().body_from_left), &img);
+      cv::cvtColor(img, gray, cv::COLOR_BGR2GRAY);
+      std::vector<cv::KeyPoint> kf, ko;
+      fast->detect(gray, kf);
+      orb->detect(gray, ko);
+      std::printf("%s t=%.0f s: %zu FAST corners (threshold 20), %zu ORB keypoints (min 300)\n",
+                  name, t, kf.size(), ko.size());
+      EXPECT_GT(kf.size(), 300u) << name << " t " << t;
+      EXPECT_GT(ko.size(), 300u) << name << " t " << t;
+    }
+  }
+}
+
+// Stereo correspondences found in the rendered images (FAST corners in the left image, 9x9
+// SSD block matching along the row of the right image, parabolic sub-pixel refinement),
+// triangulated with the rig's geometry (corners off depth edges, within 30 m), recover the world
+// points that the z-buffer says are there.
+TEST(Renderer, TriangulatedStereoCorrespondencesRecoverWorldPoints) {
+  const SensorRig rig = CarRig().Scaled(0.75);
+  const Renderer r(Urban().world);
+  std::vector<double> rel_errors;
+  for (double t : {8.0, 30.0, 55.0}) {
+    const Rigid3d wl = Pose(Urban(), t, rig.body_from_left);
+    const Rigid3d wr = Pose(Urban(), t, rig.body_from_right);
+    cv::Mat left, right, depth, gl, gr;
+    r.Render(rig.left, wl, &left, &depth);
+    r.Render(rig.right, wr, &right);
+    cv::cvtColor(left, gl, cv::COLOR_BGR2GRAY);
+    cv::cvtColor(right, gr, cv::COLOR_BGR2GRAY);
+    std::vector<cv::KeyPoint> kps;
+    cv::FastFeatureDetector::create(25)->detect(gl, kps);
+    const int half = 4, max_disp = 120;
+    for (const cv::KeyPoint& kp : kps) {
+      const int x = cvRound(kp.pt.x), y = cvRound(kp.pt.y);
+      if (x < half + max_disp || y < half || x >= gl.cols - half || y >= gl.rows - half) continue;
+      const float d = depth.at<float>(y, x);
+      if (!std::isfinite(d) || d > 30) continue;
+      // Skip corners on depth discontinuities: their z-buffer depth may be either side's.
+      double dmin, dmax;
+      cv::minMaxLoc(depth(cv::Rect(x - 2, y - 2, 5, 5)), &dmin, &dmax);
+      if (dmax > 1.05 * dmin) continue;
+      const cv::Mat patch = gl(cv::Rect(x - half, y - half, 2 * half + 1, 2 * half + 1));
+      std::vector<double> cost(max_disp + 1);
+      for (int disp = 0; disp <= max_disp; ++disp) {
+        cost[disp] =
+            cv::norm(patch, gr(cv::Rect(x - disp - half, y - half, 2 * half + 1, 2 * half + 1)),
+                     cv::NORM_L2SQR);
+      }
+      const int best = static_cast<int>(std::min_element(cost.begin(), cost.end()) - cost.begin());
+      if (best == 0 || best == max_disp) continue;
+      // Unique minimum only (the second best, away from the minimum, is clearly worse).
+      double second = 1e30;
+      for (int k = 0; k <= max_disp; ++k) {
+        if (std::abs(k - best) > 2) second = std::min(second, cost[k]);
+      }
+      if (cost[best] > 0.5 * second) continue;
+      const double c0 = cost[best - 1], c1 = cost[best], c2 = cost[best + 1];
+      const double sub = best + 0.5 * (c0 - c2) / std::max(1e-9, c0 - 2 * c1 + c2);
+      const auto p = camera::TriangulateTwoView(wl.Inverse(), wr.Inverse(),
+                                                rig.left.PixelToNormalized({double(x), double(y)}),
+                                                rig.right.PixelToNormalized({x - sub, double(y)}));
+      if (!p) continue;
+      const Eigen::Vector3d truth = wl * (rig.left.Unproject({double(x), double(y)}) * d);
+      const double range = (truth - wl.translation).norm();
+      rel_errors.push_back((*p - truth).norm() / range);
+    }
+  }
+  ASSERT_GT(rel_errors.size(), 100u);
+  std::sort(rel_errors.begin(), rel_errors.end());
+  const double median = rel_errors[rel_errors.size() / 2];
+  const double p90 = rel_errors[rel_errors.size() * 9 / 10];
+  std::printf(
+      "%zu stereo correspondences: triangulation error / range median %.4f (max 0.01), "
+      "90th percentile %.4f (max 0.05)\n",
+      rel_errors.size(), median, p90);
+  EXPECT_LT(median, 0.01);
+  EXPECT_LT(p90, 0.05);
+}
+
+TEST(Renderer, OutputDoesNotDependOnTheThreadCount) {
+  const SensorRig rig = CarRig().Scaled(0.4);
+  const Renderer r(Urban().world);
+  const Rigid3d pose = Pose(Urban(), 20, rig.body_from_left);
+  cv::Mat a, b, da, db;
+  const int threads = cv::getNumThreads();
+  cv::setNumThreads(1);
+  r.Render(rig.left, pose, &a, &da);
+  cv::setNumThreads(std::max(2, threads));
+  r.Render(rig.left, pose, &b, &db);
+  cv::setNumThreads(threads);
+  EXPECT_EQ(cv::norm(a, b, cv::NORM_INF), 0);
+  EXPECT_EQ(cv::countNonZero(da != db), 0);
+}
+
+// A distorted camera sees each world point where its own projection model puts it: the depth
+// it renders at a pixel, unprojected through the distortion model, lands on the surface the
+// undistorted camera renders at that point's pinhole projection.
+TEST(Renderer, DistortedCamerasFollowTheirModel) {
+  camera::PinholeCamera dist = CarRig().Scaled(0.4).left;
+  dist.distortion = camera::DistortionModel::kRadialTangential;
+  dist.coeffs = {-0.28, 0.07, 0.0002, 0.00002};
+  camera::PinholeCamera pin = dist;
+  pin.distortion = camera::DistortionModel::kNone;
+  pin.width *= 2;
+  pin.height *= 2;
+  pin.cx = pin.cx * 2 + 0.5;
+  pin.cy = pin.cy * 2 + 0.5;
+  const Renderer r(Urban().world);
+  const Rigid3d pose = Pose(Urban(), 25, CarRig().body_from_left);
+  cv::Mat img_d, depth_d, img_p, depth_p;
+  r.Render(dist, pose, &img_d, &depth_d);
+  r.Render(pin, pose, &img_p, &depth_p);
+  int checked = 0, agree = 0;
+  for (int y = 5; y < dist.height - 5; y += 7) {
+    for (int x = 5; x < dist.width - 5; x += 7) {
+      const float d = depth_d.at<float>(y, x);
+      if (!std::isfinite(d) || d > 60) continue;
+      const Eigen::Vector3d p = dist.Unproject({double(x), double(y)}) * d;
+      const auto q = pin.Project(p);
+      if (!q || !pin.InImage(*q, 2)) continue;
+      ++checked;
+      const float dp = depth_p.at<float>(cvRound(q->y()), cvRound(q->x()));
+      agree += std::abs(dp - d) < 0.03 * d;
+    }
+  }
+  const double ratio = static_cast<double>(agree) / checked;
+  std::printf(
+      "distorted camera: %d of %d sampled pixels agree with the pinhole render (%.3f, "
+      "min 0.95)\n",
+      agree, checked, ratio);
+  EXPECT_GT(checked, 300);
+  EXPECT_GT(ratio, 0.95);
+}
+
+}  // namespace
+}  // namespace optinav::sim

@@ -1,0 +1,158 @@
+#include "optinav/sim/sensors.h"
+
+#include <cmath>
+#include <random>
+
+#include <fmt/format.h>
+
+#include "optinav/util/error.h"
+
+namespace optinav::sim {
+namespace {
+
+Eigen::Vector3d Gaussian3(std::mt19937_64& rng, double sigma) {
+  std::normal_distribution<double> n(0.0, 1.0);
+  const double x = n(rng), y = n(rng), z = n(rng);
+  return sigma * Eigen::Vector3d(x, y, z);
+}
+
+std::pair<double, double> ParsePair(const std::string& text, const std::string& field,
+                                    const char* layout) {
+  const size_t colon = text.find(':');
+  auto bad = [&] {
+    return Error(fmt::format("expected {}, got '{}'", layout, text), {.field = field});
+  };
+  if (colon == std::string::npos) throw bad();
+  try {
+    size_t n1 = 0, n2 = 0;
+    const std::string a = text.substr(0, colon), b = text.substr(colon + 1);
+    const double x = std::stod(a, &n1), y = std::stod(b, &n2);
+    if (n1 != a.size() || n2 != b.size() || !std::isfinite(x) || !std::isfinite(y)) throw bad();
+    return {x, y};
+  } catch (const std::logic_error&) {
+    throw bad();
+  }
+}
+
+}  // namespace
+
+std::string ImuOptions::Check() const {
+  if (!(rate_hz > 0 && rate_hz <= 10000))
+    return fmt::format("imu rate_hz {} not in (0, 10000]", rate_hz);
+  for (const auto& [name, v] : {std::pair{"gyroscope_noise_density", gyroscope_noise_density},
+                                {"gyroscope_random_walk", gyroscope_random_walk},
+                                {"accelerometer_noise_density", accelerometer_noise_density},
+                                {"accelerometer_random_walk", accelerometer_random_walk},
+                                {"initial_gyro_bias_sigma", initial_gyro_bias_sigma},
+                                {"initial_accel_bias_sigma", initial_accel_bias_sigma}}) {
+    if (!(v >= 0) || !std::isfinite(v)) return fmt::format("imu {} = {} must be >= 0", name, v);
+  }
+  return "";
+}
+
+std::vector<ImuMeasurement> SimulateImu(const BodyTrajectory& trajectory, const ImuOptions& options,
+                                        uint64_t seed) {
+  std::mt19937_64 rng(seed ^ 0x1a2b3c4d5e6f7788ull);
+  const double dt = 1.0 / options.rate_hz;
+  const bool noisy = !options.noise_free;
+  Eigen::Vector3d bg = Eigen::Vector3d::Zero(), ba = Eigen::Vector3d::Zero();
+  if (noisy) {
+    bg = Gaussian3(rng, options.initial_gyro_bias_sigma);
+    ba = Gaussian3(rng, options.initial_accel_bias_sigma);
+  }
+  const double sg = options.gyroscope_noise_density * std::sqrt(options.rate_hz);
+  const double sa = options.accelerometer_noise_density * std::sqrt(options.rate_hz);
+  const double wg = options.gyroscope_random_walk * std::sqrt(dt);
+  const double wa = options.accelerometer_random_walk * std::sqrt(dt);
+  std::vector<ImuMeasurement> out;
+  for (int64_t k = 0;; ++k) {
+    const int64_t t = trajectory.start_ns() + static_cast<int64_t>(std::llround(k * dt * 1e9));
+    if (t > trajectory.end_ns()) break;
+    const BodyState s = trajectory.At(t);
+    ImuMeasurement m;
+    m.t_ns = t;
+    m.gyro_rad_s = s.angular_velocity_in_body;
+    m.accel_m_s2 = s.world_from_body.rotation.conjugate() *
+                   (s.acceleration_in_world + Eigen::Vector3d(0, 0, kGravity));
+    if (noisy) {
+      m.gyro_rad_s += bg + Gaussian3(rng, sg);
+      m.accel_m_s2 += ba + Gaussian3(rng, sa);
+      m.gyro_bias = bg;
+      m.accel_bias = ba;
+      bg += Gaussian3(rng, wg);
+      ba += Gaussian3(rng, wa);
+    }
+    out.push_back(m);
+  }
+  return out;
+}
+
+std::string GnssOptions::Check() const {
+  if (!(rate_hz >= 0.1 && rate_hz <= 100)) {
+    return fmt::format("--gnss-rate {} Hz not in [0.1, 100]", rate_hz);
+  }
+  if (!(sigma_m >= 0 && std::isfinite(sigma_m))) return fmt::format("--gnss-sigma {} < 0", sigma_m);
+  if (!(outlier_fraction >= 0 && outlier_fraction <= 1)) {
+    return fmt::format("--gnss-outliers fraction {} not in [0, 1]", outlier_fraction);
+  }
+  if (!(outlier_magnitude_m >= 0)) {
+    return fmt::format("--gnss-outliers magnitude {} m < 0", outlier_magnitude_m);
+  }
+  for (const GnssOutage& o : outages) {
+    if (!(o.start_s >= 0 && o.duration_s > 0)) {
+      return fmt::format("--gnss-outage {}:{} needs start >= 0 and duration > 0", o.start_s,
+                         o.duration_s);
+    }
+  }
+  if (!(std::abs(origin.lat_deg) <= 90 && std::abs(origin.lon_deg) <= 180)) {
+    return fmt::format("origin {},{} is not a latitude/longitude", origin.lat_deg, origin.lon_deg);
+  }
+  return "";
+}
+
+std::vector<GnssMeasurement> SimulateGnss(const BodyTrajectory& trajectory,
+                                          const GnssOptions& options, uint64_t seed) {
+  std::mt19937_64 rng(seed ^ 0x9e3779b97f4a7c15ull);
+  std::uniform_real_distribution<double> u01(0, 1);
+  const geo::LocalEnu enu(options.origin, options.origin_height_m);
+  std::vector<GnssMeasurement> out;
+  const double dt = 1.0 / options.rate_hz;
+  for (int64_t k = 0;; ++k) {
+    const double t_s = k * dt;
+    const int64_t t = trajectory.start_ns() + static_cast<int64_t>(std::llround(t_s * 1e9));
+    if (t > trajectory.end_ns()) break;
+    // Draw the noise for every epoch, so outages do not shift the noise of later samples.
+    const Eigen::Vector3d noise = Gaussian3(rng, options.sigma_m);
+    const bool outlier = u01(rng) < options.outlier_fraction;
+    Eigen::Vector3d dir = Gaussian3(rng, 1.0);
+    bool in_outage = false;
+    for (const GnssOutage& o : options.outages) {
+      in_outage |= t_s >= o.start_s && t_s < o.start_s + o.duration_s;
+    }
+    if (in_outage) continue;
+    const BodyState s = trajectory.At(t);
+    GnssMeasurement m;
+    m.t_ns = t;
+    m.position_enu_m = s.world_from_body * options.lever_arm_in_body + noise;
+    if (outlier && dir.norm() > 1e-9) {
+      m.position_enu_m += options.outlier_magnitude_m * dir.normalized();
+      m.outlier = true;
+    }
+    const geo::LatLon ll = enu.FromEnu(m.position_enu_m, &m.height_m);
+    m.lat_deg = ll.lat_deg;
+    m.lon_deg = ll.lon_deg;
+    out.push_back(m);
+  }
+  return out;
+}
+
+std::pair<double, double> ParseOutlierSpec(const std::string& text, const std::string& field) {
+  return ParsePair(text, field, "FRACTION:MAGNITUDE_M, e.g. 0.05:20");
+}
+
+GnssOutage ParseOutageSpec(const std::string& text, const std::string& field) {
+  const auto [a, b] = ParsePair(text, field, "START_S:DURATION_S, e.g. 30:10");
+  return {a, b};
+}
+
+}  // namespace optinav::sim

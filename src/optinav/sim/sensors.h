@@ -1,0 +1,81 @@
+// IMU and GNSS measurements of a BodyTrajectory.
+//
+// IMU (frame = body frame): gyro = omega_body + b_g + n_g, accel = R^T (a + g e_z) + b_a + n_a,
+// with white noise of the given continuous-time densities (sigma_discrete = density * sqrt(rate))
+// and biases following a random walk (sigma per step = random_walk * sqrt(dt)), the Kalibr/EuRoC
+// noise model. Defaults are EuRoC's ADIS16448 figures.
+// GNSS: the antenna (at a lever arm in the body frame) in local ENU with Gaussian noise, optional
+// outliers and outage windows, also as WGS84 latitude/longitude/ellipsoidal height about the
+// origin of the ENU frame.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "optinav/geo/geo.h"
+#include "optinav/sim/trajectory.h"
+
+namespace optinav::sim {
+
+struct ImuOptions {
+  double rate_hz = 200.0;
+  double gyroscope_noise_density = 1.6968e-4;   // rad / s / sqrt(Hz)
+  double gyroscope_random_walk = 1.9393e-5;     // rad / s^2 / sqrt(Hz)
+  double accelerometer_noise_density = 2.0e-3;  // m / s^2 / sqrt(Hz)
+  double accelerometer_random_walk = 3.0e-3;    // m / s^3 / sqrt(Hz)
+  double initial_gyro_bias_sigma = 2e-3;        // rad/s, per axis
+  double initial_accel_bias_sigma = 2e-2;       // m/s^2, per axis
+  bool noise_free = false;                      // exact measurements, zero biases
+  // Empty when valid, else the offending field and value.
+  std::string Check() const;
+};
+
+struct ImuMeasurement {
+  int64_t t_ns = 0;
+  Eigen::Vector3d gyro_rad_s = Eigen::Vector3d::Zero();
+  Eigen::Vector3d accel_m_s2 = Eigen::Vector3d::Zero();
+  // The true biases at this sample (written to the ground truth).
+  Eigen::Vector3d gyro_bias = Eigen::Vector3d::Zero();
+  Eigen::Vector3d accel_bias = Eigen::Vector3d::Zero();
+};
+
+// Samples at start + k / rate for every k with t <= end.
+std::vector<ImuMeasurement> SimulateImu(const BodyTrajectory& trajectory, const ImuOptions& options,
+                                        uint64_t seed);
+
+struct GnssOutage {
+  double start_s = 0, duration_s = 0;  // seconds after the start of the trajectory
+};
+
+struct GnssOptions {
+  double rate_hz = 5.0;
+  double sigma_m = 1.0;              // per axis
+  double outlier_fraction = 0.0;     // [0, 1]
+  double outlier_magnitude_m = 0.0;  // outliers are offset by this distance, random direction
+  std::vector<GnssOutage> outages;   // no samples inside these windows
+  Eigen::Vector3d lever_arm_in_body{0, 0, 0.1};  // antenna position in the body frame (m)
+  geo::LatLon origin{47.3769, 8.5417};           // the ENU origin (Zurich by default)
+  double origin_height_m = 408.0;                // ellipsoidal
+  std::string Check() const;
+};
+
+struct GnssMeasurement {
+  int64_t t_ns = 0;
+  Eigen::Vector3d position_enu_m = Eigen::Vector3d::Zero();
+  double lat_deg = 0, lon_deg = 0, height_m = 0;
+  bool outlier = false;
+};
+
+std::vector<GnssMeasurement> SimulateGnss(const BodyTrajectory& trajectory,
+                                          const GnssOptions& options, uint64_t seed);
+
+// "0.05:20" -> fraction 0.05, magnitude 20 m; "30:10" -> outage from 30 s for 10 s. Throw Error
+// naming `field` when malformed.
+std::pair<double, double> ParseOutlierSpec(const std::string& text, const std::string& field);
+GnssOutage ParseOutageSpec(const std::string& text, const std::string& field);
+
+}  // namespace optinav::sim

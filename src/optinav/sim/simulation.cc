@@ -1,0 +1,471 @@
+#include "optinav/sim/simulation.h"
+
+#include <atomic>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <future>
+#include <mutex>
+#include <thread>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "optinav/io/airsim_recording.h"
+#include "optinav/io/text_parse.h"
+#include "optinav/io/waypoints.h"
+#include "optinav/sim/renderer.h"
+#include "optinav/util/error.h"
+#include "optinav/util/queue.h"
+
+namespace fs = std::filesystem;
+
+namespace optinav::sim {
+namespace {
+
+constexpr int64_t kStartNs = 1'700'000'000'000'000'000;  // 2023-11-14T22:13:20Z
+constexpr const char* kMarker = "sim_complete.json";
+
+std::string MatrixYaml(const Eigen::Matrix4d& m) {
+  std::string s = "  cols: 4\n  rows: 4\n  data: [";
+  for (int r = 0; r < 4; ++r) {
+    for (int c = 0; c < 4; ++c) {
+      s += fmt::format("{:.12f}{}", m(r, c),
+                       r == 3 && c == 3 ? "]\n" : (c == 3 ? ",\n         " : ", "));
+    }
+  }
+  return s;
+}
+
+std::string CameraYaml(const camera::PinholeCamera& c, const Rigid3d& body_from_cam, double rate_hz,
+                       const std::string& comment) {
+  const bool radtan = c.distortion == camera::DistortionModel::kRadialTangential ||
+                      c.distortion == camera::DistortionModel::kNone;
+  return fmt::format(
+      "%YAML:1.0\n# {}\nsensor_type: camera\ncomment: {}\n\n# Sensor extrinsics wrt. the "
+      "body-frame.\nT_BS:\n{}\n# Camera specific definitions.\nrate_hz: {:.6f}\nresolution: "
+      "[{}, {}]\ncamera_model: pinhole\nintrinsics: [{:.9f}, {:.9f}, {:.9f}, {:.9f}] #fu, fv, "
+      "cu, cv\ndistortion_model: {}\ndistortion_coefficients: [{:.12g}, {:.12g}, {:.12g}, "
+      "{:.12g}]\n",
+      "written by optinav sim", comment, MatrixYaml(body_from_cam.ToMatrix()), rate_hz, c.width,
+      c.height, c.fx, c.fy, c.cx, c.cy, radtan ? "radial-tangential" : "equidistant", c.coeffs[0],
+      c.coeffs[1], c.coeffs[2], c.coeffs[3]);
+}
+
+std::string ImuYaml(const ImuOptions& o) {
+  return fmt::format(
+      "%YAML:1.0\n# written by optinav sim\nsensor_type: imu\ncomment: simulated IMU, "
+      "Kalibr/EuRoC noise model\n\n# Sensor extrinsics wrt. the body-frame.\nT_BS:\n{}\n"
+      "rate_hz: {:.6f}\n\n# inertial sensor noise model parameters (static)\n"
+      "gyroscope_noise_density: {:.9g}     # [ rad / s / sqrt(Hz) ]\n"
+      "gyroscope_random_walk: {:.9g}       # [ rad / s^2 / sqrt(Hz) ]\n"
+      "accelerometer_noise_density: {:.9g} # [ m / s^2 / sqrt(Hz) ]\n"
+      "accelerometer_random_walk: {:.9g}   # [ m / s^3 / sqrt(Hz) ]\n"
+      "noise_free: {}\n",
+      MatrixYaml(Eigen::Matrix4d::Identity()), o.rate_hz, o.gyroscope_noise_density,
+      o.gyroscope_random_walk, o.accelerometer_noise_density, o.accelerometer_random_walk,
+      o.noise_free ? "true" : "false");
+}
+
+std::string GnssYaml(const GnssOptions& o) {
+  std::string outages = "[";
+  for (size_t i = 0; i < o.outages.size(); ++i) {
+    outages += fmt::format("{}[{:.3f}, {:.3f}]", i ? ", " : "", o.outages[i].start_s,
+                           o.outages[i].duration_s);
+  }
+  outages += "]";
+  return fmt::format(
+      "%YAML:1.0\n# written by optinav sim\nsensor_type: gnss\ncomment: antenna position; "
+      "data.csv local ENU metres about the origin, llh.csv WGS84\n\n# Antenna (lever arm) wrt. "
+      "the body-frame.\nT_BS:\n{}\nrate_hz: {:.6f}\nsigma_m: {:.6f}\n"
+      "outlier_fraction: {:.6f}\noutlier_magnitude_m: {:.6f}\noutages_s: {} # [start, "
+      "duration] after the first sample\norigin_latitude_deg: {:.9f}\norigin_longitude_deg: "
+      "{:.9f}\norigin_height_m: {:.4f}\n",
+      MatrixYaml(Rigid3d(Eigen::Quaterniond::Identity(), o.lever_arm_in_body).ToMatrix()),
+      o.rate_hz, o.sigma_m, o.outlier_fraction, o.outlier_magnitude_m, outages, o.origin.lat_deg,
+      o.origin.lon_deg, o.origin_height_m);
+}
+
+std::string ImuCsv(const std::vector<ImuMeasurement>& imu) {
+  std::string s =
+      "#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],"
+      "a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]\n";
+  for (const auto& m : imu) {
+    s += fmt::format("{},{:.12f},{:.12f},{:.12f},{:.12f},{:.12f},{:.12f}\n", m.t_ns,
+                     m.gyro_rad_s.x(), m.gyro_rad_s.y(), m.gyro_rad_s.z(), m.accel_m_s2.x(),
+                     m.accel_m_s2.y(), m.accel_m_s2.z());
+  }
+  return s;
+}
+
+std::string GroundTruthCsv(const BodyTrajectory& traj, const std::vector<ImuMeasurement>& imu) {
+  std::string s =
+      "#timestamp, p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], "
+      "q_RS_z [], v_RS_R_x [m s^-1], v_RS_R_y [m s^-1], v_RS_R_z [m s^-1], b_w_RS_S_x [rad "
+      "s^-1], b_w_RS_S_y [rad s^-1], b_w_RS_S_z [rad s^-1], b_a_RS_S_x [m s^-2], b_a_RS_S_y [m "
+      "s^-2], b_a_RS_S_z [m s^-2]\n";
+  for (const auto& m : imu) {
+    const BodyState st = traj.At(m.t_ns);
+    const Eigen::Vector3d& p = st.world_from_body.translation;
+    const Eigen::Vector4d q = QuaternionToWxyz(st.world_from_body.rotation);
+    const Eigen::Vector3d& v = st.velocity_in_world;
+    s += fmt::format(
+        "{},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9g},{:.9g},"
+        "{:.9g},{:.9g},{:.9g},{:.9g}\n",
+        m.t_ns, p.x(), p.y(), p.z(), q[0], q[1], q[2], q[3], v.x(), v.y(), v.z(), m.gyro_bias.x(),
+        m.gyro_bias.y(), m.gyro_bias.z(), m.accel_bias.x(), m.accel_bias.y(), m.accel_bias.z());
+  }
+  return s;
+}
+
+std::string GnssCsv(const std::vector<GnssMeasurement>& g) {
+  std::string s = "#timestamp [ns], x [m], y [m], z [m]\n";
+  for (const auto& m : g) {
+    s += fmt::format("{},{:.6f},{:.6f},{:.6f}\n", m.t_ns, m.position_enu_m.x(),
+                     m.position_enu_m.y(), m.position_enu_m.z());
+  }
+  return s;
+}
+
+std::string GnssLlhCsv(const std::vector<GnssMeasurement>& g) {
+  std::string s = "#timestamp [ns], latitude [deg], longitude [deg], height [m], outlier\n";
+  for (const auto& m : g) {
+    s += fmt::format("{},{:.10f},{:.10f},{:.6f},{}\n", m.t_ns, m.lat_deg, m.lon_deg, m.height_m,
+                     m.outlier ? 1 : 0);
+  }
+  return s;
+}
+
+void PrepareOutputDir(const std::string& dir, bool force) {
+  std::error_code ec;
+  if (fs::exists(dir, ec)) {
+    if (!fs::is_directory(dir, ec)) throw Error("output exists and is not a folder", {.file = dir});
+    if (!fs::is_empty(dir, ec)) {
+      if (!force) {
+        throw Error("output folder exists and is not empty (use --force to replace its contents)",
+                    {.file = dir, .field = "out"});
+      }
+      for (const auto& entry : fs::directory_iterator(dir)) fs::remove_all(entry.path());
+    }
+  }
+  fs::create_directories(dir, ec);
+  if (ec) throw Error("cannot create the output folder: " + ec.message(), {.file = dir});
+}
+
+struct ImageJob {
+  std::string path;
+  cv::Mat image;
+};
+
+BodyTrajectory MakeRoute(const SimulationOptions& o, const World& world) {
+  if (o.route == "car") {
+    return MakeCarTrajectory(
+        world.kind == WorldKind::kTerrain ? CarRouteOptions::Terrain() : CarRouteOptions::Urban(),
+        world.ground_height, kStartNs);
+  }
+  if (o.route == "drone") {
+    RandomDroneRouteOptions r;
+    r.speed_m_s = o.speed_m_s;
+    r.altitude_m = o.altitude_m;
+    r.duration_s = o.duration_s > 0 ? o.duration_s : 60.0;
+    r.area_min = world.area_min;
+    r.area_max = world.area_max;
+    r.start = Eigen::Vector2d::Zero().cwiseMax(world.area_min).cwiseMin(world.area_max);
+    return MakeDroneTrajectory(RandomDroneWaypoints(r, world.ground_height, o.seed), o.speed_m_s,
+                               kStartNs);
+  }
+  const std::string file = o.route.substr(6);
+  std::vector<DroneWaypoint> wps;
+  for (const io::WaypointRow& row : io::ReadWaypointsFile(file)) {
+    DroneWaypoint w;
+    w.position_in_world =
+        Eigen::Vector3d(row.x_m, row.y_m, world.ground_height(row.x_m, row.y_m) + row.altitude_m);
+    if (row.yaw_deg) w.yaw_rad = *row.yaw_deg * M_PI / 180.0;
+    wps.push_back(w);
+  }
+  try {
+    return MakeDroneTrajectory(wps, o.speed_m_s, kStartNs);
+  } catch (const Error& e) {
+    throw Error(e.message(), {.file = file});
+  }
+}
+
+std::string FormatName(DatasetFormat f) { return f == DatasetFormat::kEuroc ? "euroc" : "airsim"; }
+
+std::string WorldName(WorldKind k) {
+  switch (k) {
+    case WorldKind::kUrban:
+      return "urban";
+    case WorldKind::kTerrain:
+      return "terrain";
+    case WorldKind::kOrtho:
+      return "ortho";
+  }
+  return "?";
+}
+
+}  // namespace
+
+std::string SimulationOptions::Check() const {
+  if (out_dir.empty()) return "--out must be given";
+  if (!(duration_s >= 0 && duration_s <= 3600)) {
+    return fmt::format("--duration {} s not in [0, 3600] (0: whole route)", duration_s);
+  }
+  if (!(scale >= 0.05 && scale <= 4)) return fmt::format("--scale {} not in [0.05, 4]", scale);
+  if (!(speed_m_s > 0 && speed_m_s <= 60))
+    return fmt::format("--speed {} m/s not in (0, 60]", speed_m_s);
+  if (!(altitude_m > 0 && altitude_m <= 5000)) {
+    return fmt::format("--altitude {} m not in (0, 5000]", altitude_m);
+  }
+  if (route != "car" && route != "drone" && !(route.rfind("drone:", 0) == 0 && route.size() > 6)) {
+    return fmt::format("--route '{}' must be car, drone or drone:FILE", route);
+  }
+  if (png_compression < 0 || png_compression > 9) return "png compression not in [0, 9]";
+  if (const std::string m = imu.Check(); !m.empty()) return m;
+  if (const std::string m = gnss.Check(); !m.empty()) return m;
+  return "";
+}
+
+SimulationSummary RunSimulation(const SimulationOptions& options,
+                                const std::function<void(size_t, size_t)>& progress) {
+  if (const std::string m = options.Check(); !m.empty()) throw Error(m);
+  const auto wall_start = std::chrono::steady_clock::now();
+  // Everything that can fail on bad input happens before the output folder is touched.
+  WorldOptions wo = options.world;
+  wo.seed = options.seed;
+  wo.weather = options.weather;
+  const World world = MakeWorld(wo);
+  const BodyTrajectory traj = MakeRoute(options, world);
+  GnssOptions gnss_opt = options.gnss;
+  if (world.origin) {
+    gnss_opt.origin = *world.origin;
+    gnss_opt.origin_height_m = 0;
+  }
+  const bool drone = options.route != "car";
+  const SensorRig rig =
+      (options.rig ? *options.rig : (drone ? DroneRig() : CarRig())).Scaled(options.scale);
+  int64_t end_ns = traj.end_ns();
+  if (options.duration_s > 0) {
+    end_ns =
+        std::min(end_ns, kStartNs + static_cast<int64_t>(std::llround(options.duration_s * 1e9)));
+  }
+  std::vector<ImuMeasurement> imu = SimulateImu(traj, options.imu, options.seed);
+  std::erase_if(imu, [&](const ImuMeasurement& m) { return m.t_ns > end_ns; });
+  std::vector<GnssMeasurement> gnss = SimulateGnss(traj, gnss_opt, options.seed);
+  std::erase_if(gnss, [&](const GnssMeasurement& m) { return m.t_ns > end_ns; });
+  const int64_t period_ns = std::llround(1e9 / rig.camera_rate_hz);
+  std::vector<int64_t> frame_times;
+  for (int64_t t = kStartNs; t <= end_ns; t += period_ns) frame_times.push_back(t);
+
+  PrepareOutputDir(options.out_dir, options.force);
+  const fs::path out(options.out_dir);
+  const bool euroc = options.format == DatasetFormat::kEuroc;
+  const fs::path mav0 = out / "mav0";
+  const fs::path left_dir = euroc ? mav0 / "cam0" / "data" : out / "images";
+  const fs::path right_dir = euroc ? mav0 / "cam1" / "data" : out / "images";
+  fs::create_directories(left_dir);
+  fs::create_directories(right_dir);
+
+  // Writer threads encode and write the PNGs while the next frames render (PNG encoding costs
+  // about as much as rendering). Zlib's RLE strategy at level 1: the fastest that compresses.
+  ThreadSafeQueue<ImageJob> queue(8);
+  std::mutex error_mutex;
+  std::string write_error;
+  std::vector<std::thread> writers;
+  const int n_writers =
+      std::max(1, std::min(4, static_cast<int>(std::thread::hardware_concurrency())));
+  for (int w = 0; w < n_writers; ++w) {
+    writers.emplace_back([&] {
+      const std::vector<int> params = {cv::IMWRITE_PNG_COMPRESSION, options.png_compression,
+                                       cv::IMWRITE_PNG_STRATEGY, cv::IMWRITE_PNG_STRATEGY_RLE};
+      std::vector<uint8_t> buf;
+      while (auto job = queue.Pop()) {
+        cv::imencode(".png", job->image, buf, params);
+        std::ofstream f(job->path, std::ios::binary);
+        f.write(reinterpret_cast<const char*>(buf.data()),
+                static_cast<std::streamsize>(buf.size()));
+        f.close();
+        if (!f) {
+          std::lock_guard<std::mutex> lock(error_mutex);
+          if (write_error.empty()) write_error = "cannot write " + job->path + " (disk full?)";
+          queue.Close();
+        }
+      }
+    });
+  }
+  auto join_writers = [&] {
+    queue.Close();
+    for (auto& w : writers) w.join();
+  };
+  const Renderer renderer(world);
+  std::string cam0_csv = "#timestamp [ns],filename\n", cam1_csv = cam0_csv;
+  std::string rec =
+      "VehicleName\tTimeStamp\tPOS_X\tPOS_Y\tPOS_Z\tQ_W\tQ_X\tQ_Y\tQ_Z\tThrottle\t"
+      "Steering\tBrake\tGear\tHandbrake\tRPM\tSpeed\tImageFile\n";
+  std::string cam_info = "TimeStamp,POS_X,POS_Y,POS_Z,Q_W,Q_X,Q_Y,Q_Z\n";
+  try {
+    for (size_t k = 0; k < frame_times.size(); ++k) {
+      const int64_t t = frame_times[k];
+      const BodyState st = traj.At(t);
+      const Rigid3d world_from_left = st.world_from_body * rig.body_from_left;
+      cv::Mat left, right;
+      RenderStereo(renderer, rig, st.world_from_body, t, options.weather, options.seed, &left,
+                   &right);
+      std::string lname, rname;
+      if (euroc) {
+        lname = rname = fmt::format("{}.png", t);
+        cam0_csv += fmt::format("{},{}\n", t, lname);
+        cam1_csv += fmt::format("{},{}\n", t, rname);
+      } else {
+        lname = fmt::format("img_front_left_0_{}.png", t);
+        rname = fmt::format("img_front_right_0_{}.png", t);
+        const int64_t t_ms = (t + 500'000) / 1'000'000;
+        const Rigid3d ned_body = io::NedFrdFromEnuFlu(st.world_from_body);
+        const Eigen::Vector4d q = QuaternionToWxyz(ned_body.rotation);
+        const CarControls c = traj.ControlsAt(t).value_or(CarControls{});
+        const double speed = st.velocity_in_world.norm();
+        const double rpm = c.gear ? 800 + 180 * speed : 0;  // a fixed gear ratio, idle 800
+        rec += fmt::format(
+            "{}\t{}\t{:.6f}\t{:.6f}\t{:.6f}\t{:.9f}\t{:.9f}\t{:.9f}\t{:.9f}\t{:.3f}\t{:.3f}\t{:.3f}"
+            "\t"
+            "{}\t{}\t{:.1f}\t{:.4f}\t{};{}\n",
+            drone ? "Drone1" : "PhysXCar", t_ms, ned_body.translation.x(), ned_body.translation.y(),
+            ned_body.translation.z(), q[0], q[1], q[2], q[3], c.throttle, c.steering, c.brake,
+            c.gear, c.handbrake ? 1 : 0, rpm, speed, lname, rname);
+        const Rigid3d ned_cam = io::NedAirsimCameraFromEnuOptical(world_from_left);
+        const Eigen::Vector4d qc = QuaternionToWxyz(ned_cam.rotation);
+        cam_info += fmt::format("{},{:.6f},{:.6f},{:.6f},{:.9f},{:.9f},{:.9f},{:.9f}\n", t_ms,
+                                ned_cam.translation.x(), ned_cam.translation.y(),
+                                ned_cam.translation.z(), qc[0], qc[1], qc[2], qc[3]);
+      }
+      if (!queue.Push({(left_dir / lname).string(), std::move(left)}) ||
+          !queue.Push({(right_dir / rname).string(), std::move(right)})) {
+        break;
+      }
+      if (progress) progress(k + 1, frame_times.size());
+    }
+  } catch (...) {
+    join_writers();
+    throw;
+  }
+  join_writers();
+  if (!write_error.empty()) throw Error(write_error, {.file = options.out_dir});
+
+  const std::string comment =
+      fmt::format("optinav sim, world {}, weather {}, seed {}", WorldName(world.kind),
+                  options.weather.ToString(), options.seed);
+  const std::string imu_csv = ImuCsv(imu), gt_csv = GroundTruthCsv(traj, imu);
+  if (euroc) {
+    io::WriteFileAtomically((mav0 / "cam0" / "data.csv").string(), cam0_csv);
+    io::WriteFileAtomically((mav0 / "cam1" / "data.csv").string(), cam1_csv);
+    io::WriteFileAtomically(
+        (mav0 / "cam0" / "sensor.yaml").string(),
+        CameraYaml(rig.left, rig.body_from_left, rig.camera_rate_hz, "left camera, " + comment));
+    io::WriteFileAtomically(
+        (mav0 / "cam1" / "sensor.yaml").string(),
+        CameraYaml(rig.right, rig.body_from_right, rig.camera_rate_hz, "right camera, " + comment));
+    fs::create_directories(mav0 / "imu0");
+    fs::create_directories(mav0 / "gnss0");
+    fs::create_directories(mav0 / "state_groundtruth_estimate0");
+    io::WriteFileAtomically((mav0 / "imu0" / "data.csv").string(), imu_csv);
+    io::WriteFileAtomically((mav0 / "imu0" / "sensor.yaml").string(), ImuYaml(options.imu));
+    io::WriteFileAtomically((mav0 / "gnss0" / "data.csv").string(), GnssCsv(gnss));
+    io::WriteFileAtomically((mav0 / "gnss0" / "llh.csv").string(), GnssLlhCsv(gnss));
+    io::WriteFileAtomically((mav0 / "gnss0" / "sensor.yaml").string(), GnssYaml(gnss_opt));
+    io::WriteFileAtomically((mav0 / "state_groundtruth_estimate0" / "data.csv").string(), gt_csv);
+  } else {
+    io::WriteFileAtomically((out / "airsim_rec.txt").string(), rec);
+    io::WriteFileAtomically((out / "camera_info.csv").string(), cam_info);
+    // Extras beyond AirSim's own files, in the EuRoC layouts (ENU world, body x forward, y left).
+    io::WriteFileAtomically((out / "imu0.csv").string(), imu_csv);
+    io::WriteFileAtomically((out / "gnss0.csv").string(), GnssCsv(gnss));
+    io::WriteFileAtomically((out / "gnss0_llh.csv").string(), GnssLlhCsv(gnss));
+    io::WriteFileAtomically((out / "groundtruth.csv").string(), gt_csv);
+  }
+  SimulationSummary summary;
+  summary.frames = frame_times.size();
+  summary.imu_samples = imu.size();
+  summary.gnss_samples = gnss.size();
+  summary.duration_s = (end_ns - kStartNs) * 1e-9;
+  summary.world_triangles = world.TriangleCount();
+  summary.width = rig.left.width;
+  summary.height = rig.left.height;
+  {
+    double len = 0;
+    Eigen::Vector3d prev = traj.At(kStartNs).world_from_body.translation;
+    for (int64_t t = kStartNs + 50'000'000; t <= end_ns; t += 50'000'000) {
+      const Eigen::Vector3d p = traj.At(t).world_from_body.translation;
+      len += (p - prev).norm();
+      prev = p;
+    }
+    summary.path_length_m = len;
+  }
+  // The completion marker: parameters and counts, nothing run-dependent (byte-identical reruns).
+  nlohmann::ordered_json j;
+  j["generator"] = "optinav sim";
+  j["world"] = WorldName(world.kind);
+  if (!options.world.ortho_path.empty()) j["ortho"] = options.world.ortho_path;
+  j["route"] = options.route;
+  j["weather"] = options.weather.ToString();
+  j["seed"] = options.seed;
+  j["format"] = FormatName(options.format);
+  j["scale"] = options.scale;
+  j["image_size"] = {rig.left.width, rig.left.height};
+  j["camera_rate_hz"] = rig.camera_rate_hz;
+  j["duration_s"] = summary.duration_s;
+  j["path_length_m"] = summary.path_length_m;
+  j["stereo_frames"] = summary.frames;
+  j["imu_samples"] = summary.imu_samples;
+  j["gnss_samples"] = summary.gnss_samples;
+  j["gnss_origin"] = {gnss_opt.origin.lat_deg, gnss_opt.origin.lon_deg, gnss_opt.origin_height_m};
+  if (drone) {
+    j["speed_m_s"] = options.speed_m_s;
+    j["altitude_m"] = options.altitude_m;
+  }
+  io::WriteFileAtomically((out / kMarker).string(), j.dump(2) + "\n");
+  summary.wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  return summary;
+}
+
+void RenderStereo(const Renderer& renderer, const SensorRig& rig, const Rigid3d& world_from_body,
+                  int64_t t_ns, const WeatherSpec& weather, uint64_t seed, cv::Mat* left,
+                  cv::Mat* right) {
+  auto one = [&](const camera::PinholeCamera& cam, const Rigid3d& body_from_cam, cv::Mat* img) {
+    const Rigid3d world_from_cam = world_from_body * body_from_cam;
+    cv::Mat depth;
+    renderer.Render(cam, world_from_cam, img, &depth);
+    ApplyWeather(*img, depth, cam, world_from_cam, t_ns, weather, seed);
+  };
+  auto right_done =
+      std::async(std::launch::async, [&] { one(rig.right, rig.body_from_right, right); });
+  one(rig.left, rig.body_from_left, left);
+  right_done.get();
+}
+
+std::vector<SuiteEntry> WeatherSuite() {
+  std::vector<SuiteEntry> out;
+  for (WorldKind w : {WorldKind::kUrban, WorldKind::kTerrain}) {
+    const std::string wn = WorldName(w);
+    out.push_back({wn + "_default", w, {}});
+    for (const char* k : {"rain", "snow", "leaves"}) {
+      out.push_back({fmt::format("{}_{}", wn, k), w, ParseWeather(fmt::format("{}:50", k))});
+    }
+    std::vector<std::string> graded = {"fog", "dust"};
+    if (w == WorldKind::kUrban) {
+      for (const char* k : {"road-wetness", "road-snow", "road-leaves"}) graded.push_back(k);
+    }
+    for (const std::string& k : graded) {
+      for (int level : {25, 50, 75, 100}) {
+        std::string name = k;
+        std::replace(name.begin(), name.end(), '-', '_');
+        out.push_back({fmt::format("{}_{}_{}", wn, name, level), w,
+                       ParseWeather(fmt::format("{}:{}", k, level))});
+      }
+    }
+  }
+  return out;
+}
+
+}  // namespace optinav::sim

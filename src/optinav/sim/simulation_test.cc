@@ -1,0 +1,191 @@
+#include "optinav/sim/simulation.h"
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <gtest/gtest.h>
+
+#include "optinav/io/airsim_recording.h"
+#include "optinav/io/euroc_dataset.h"
+#include "optinav/io/text_parse.h"
+#include "optinav/io/trajectory_io.h"
+#include "optinav/util/testing.h"
+
+namespace fs = std::filesystem;
+
+namespace optinav::sim {
+namespace {
+
+SimulationOptions Small(const std::string& out, DatasetFormat format) {
+  SimulationOptions o;
+  o.out_dir = out;
+  o.format = format;
+  o.scale = 0.15;
+  o.duration_s = 1.5;
+  o.seed = 11;
+  o.gnss.rate_hz = 10;
+  o.gnss.sigma_m = 0.5;
+  o.gnss.outlier_fraction = 0.2;
+  o.gnss.outlier_magnitude_m = 15;
+  return o;
+}
+
+TEST(Simulation, EurocOutputRoundTripsThroughTheReader) {
+  const fs::path dir = testing::MakeTempDir("sim_euroc");
+  SimulationOptions o = Small((dir / "seq").string(), DatasetFormat::kEuroc);
+  o.route = "drone";
+  o.weather = ParseWeather("fog:50");
+  const SimulationSummary s = RunSimulation(o);
+  std::printf("euroc: %zu frames, %zu imu, %zu gnss in %.2f s\n", s.frames, s.imu_samples,
+              s.gnss_samples, s.wall_s);
+  ASSERT_TRUE(fs::is_regular_file(dir / "seq" / "sim_complete.json"));
+  const io::EurocDataset ds = io::OpenEurocDataset((dir / "seq").string());
+  ASSERT_TRUE(ds.cam0 && ds.cam1 && ds.imu_calibration);
+  EXPECT_EQ(ds.cam0->images.size(), s.frames);
+  EXPECT_EQ(ds.cam1->images.size(), s.frames);
+  const SensorRig rig = DroneRig().Scaled(0.15);
+  EXPECT_EQ(ds.cam0->calibration.width, rig.left.width);
+  EXPECT_NEAR(ds.cam0->calibration.fx, rig.left.fx, 1e-6);
+  EXPECT_NEAR(LogSE3(ds.cam1->calibration.body_from_cam.Inverse() * rig.body_from_right).norm(), 0,
+              1e-9);
+  EXPECT_NEAR(ds.imu_calibration->gyroscope_noise_density, o.imu.gyroscope_noise_density, 1e-12);
+
+  // IMU, GNSS and ground truth agree with a fresh simulation of the same trajectory.
+  const auto imu = io::ReadImuCsv(ds.imu_csv);
+  const auto gnss = io::ReadGnssCsv(ds.gnss_csv);
+  ASSERT_EQ(imu.size(), s.imu_samples);
+  ASSERT_EQ(gnss.size(), s.gnss_samples);
+  const Trajectory gt = io::ReadTrajectory(ds.groundtruth_csv);
+  ASSERT_EQ(gt.size(), imu.size());
+  // Specific force at rest-ish hover start is about g up; the ground truth starts at rest.
+  EXPECT_NEAR(imu.front().accel_m_s2.norm(), kGravity, 0.2);
+  EXPECT_EQ(gt.t_ns.front(), imu.front().t_ns);
+  // GNSS positions lie near the ground truth (0.5 m sigma, 15 m outliers).
+  int near = 0;
+  for (const auto& g : gnss) {
+    size_t k = 0;
+    while (k + 1 < gt.size() && gt.t_ns[k] < g.t_ns) ++k;
+    near += (g.position_enu_m - gt.positions[k]).norm() < 3.0;
+  }
+  EXPECT_GT(near, static_cast<int>(gnss.size()) / 2);
+}
+
+TEST(Simulation, AirsimOutputRoundTripsThroughTheReader) {
+  const fs::path dir = testing::MakeTempDir("sim_airsim");
+  SimulationOptions o = Small((dir / "seq").string(), DatasetFormat::kAirsim);
+  o.duration_s = 3;
+  o.scale = 0.1;
+  const SimulationSummary s = RunSimulation(o);
+  const io::AirsimRecording rec = io::ReadAirsimRecording((dir / "seq").string());
+  ASSERT_EQ(rec.records.size(), s.frames);
+  ASSERT_EQ(rec.left_camera.size(), s.frames);
+  const Trajectory gt = io::ReadTrajectory((dir / "seq" / "groundtruth.csv").string());
+  const SensorRig rig = CarRig();
+  double worst_p = 0, worst_r = 0, worst_cam = 0;
+  for (size_t i = 0; i < rec.records.size(); ++i) {
+    const io::AirsimRecord& r = rec.records[i];
+    ASSERT_TRUE(r.world_from_body.has_value());
+    ASSERT_EQ(r.image_paths.size(), 2u);
+    EXPECT_NE(r.image_paths[0].find("front_left"), std::string::npos);
+    EXPECT_NE(r.image_paths[1].find("front_right"), std::string::npos);
+    // Ground truth at 200 Hz holds every 30 ms frame time exactly (both are multiples of 5 ms).
+    size_t k = 0;
+    while (gt.t_ns[k] < r.t_ns) ++k;
+    ASSERT_EQ(gt.t_ns[k], r.t_ns);
+    worst_p = std::max(worst_p, (r.world_from_body->translation - gt.positions[k]).norm());
+    worst_r = std::max(worst_r,
+                       RotationAngle(r.world_from_body->rotation.conjugate() * gt.quaternion(k)));
+    const Rigid3d cam = gt.pose(k) * rig.body_from_left;
+    worst_cam =
+        std::max(worst_cam, LogSE3(cam.Inverse() * rec.left_camera[i].world_from_cam).norm());
+  }
+  std::printf(
+      "airsim: %zu rows; NED->ENU round trip: position %.2e m, rotation %.2e rad, left "
+      "camera %.2e\n",
+      rec.records.size(), worst_p, worst_r, worst_cam);
+  EXPECT_LT(worst_p, 2e-6);
+  EXPECT_LT(worst_r, 1e-6);
+  EXPECT_LT(worst_cam, 1e-5);
+  // The car starts at the AirSim origin facing north: identity in NED.
+  EXPECT_NEAR(rec.records.front().world_from_body->translation.norm(), 0, 1e-6);
+  EXPECT_DOUBLE_EQ(rec.records.back().throttle, 0.7);
+}
+
+std::string Slurp(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+// Every file of a folder, by relative path.
+std::map<std::string, std::string> Files(const fs::path& root) {
+  std::map<std::string, std::string> out;
+  for (const auto& e : fs::recursive_directory_iterator(root)) {
+    if (e.is_regular_file()) out[fs::relative(e.path(), root).string()] = Slurp(e.path());
+  }
+  return out;
+}
+
+TEST(Simulation, SameSeedGivesByteIdenticalOutput) {
+  const fs::path dir = testing::MakeTempDir("sim_det");
+  SimulationOptions o = Small((dir / "a").string(), DatasetFormat::kEuroc);
+  o.weather = ParseWeather("snow:60");
+  o.duration_s = 0.5;
+  RunSimulation(o);
+  o.out_dir = (dir / "b").string();
+  RunSimulation(o);
+  o.out_dir = (dir / "c").string();
+  o.seed = 12;
+  RunSimulation(o);
+  const auto a = Files(dir / "a"), b = Files(dir / "b"), c = Files(dir / "c");
+  size_t bytes = 0;
+  for (const auto& [k, v] : a) bytes += v.size();
+  std::printf("determinism: %zu files, %zu bytes compared\n", a.size(), bytes);
+  ASSERT_GT(a.size(), 10u);
+  EXPECT_TRUE(a == b);
+  EXPECT_FALSE(a == c);
+}
+
+TEST(Simulation, RefusesANonEmptyFolderAndBadInputBeforeWriting) {
+  const fs::path dir = testing::MakeTempDir("sim_refuse");
+  testing::WriteFile(dir / "seq" / "keep.txt", "keep");
+  SimulationOptions o = Small((dir / "seq").string(), DatasetFormat::kEuroc);
+  o.duration_s = 0.2;
+  try {
+    RunSimulation(o);
+    ADD_FAILURE() << "wrote into a non-empty folder";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("not empty"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(Slurp(dir / "seq" / "keep.txt"), "keep");
+  // A bad waypoint file fails before the folder is touched, even with force.
+  testing::WriteFile(dir / "wp.txt", "0, 0, 10\n5, x, 10\n");
+  o.route = "drone:" + (dir / "wp.txt").string();
+  o.force = true;
+  try {
+    RunSimulation(o);
+    ADD_FAILURE() << "accepted a bad waypoint file";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("wp.txt:2"), std::string::npos) << e.what();
+  }
+  EXPECT_TRUE(fs::exists(dir / "seq" / "keep.txt"));
+  // With force and a good waypoint file it replaces the contents and completes.
+  testing::WriteFile(dir / "wp.txt", "0, 0, 10\n20, 0, 12, 90\n20, 20, 10\n");
+  RunSimulation(o);
+  EXPECT_FALSE(fs::exists(dir / "seq" / "keep.txt"));
+  EXPECT_TRUE(fs::exists(dir / "seq" / "sim_complete.json"));
+}
+
+TEST(Simulation, SuiteHasTheDocumentsThirtySixSequences) {
+  const auto suite = WeatherSuite();
+  int urban = 0, terrain = 0;
+  for (const auto& e : suite) (e.world == WorldKind::kUrban ? urban : terrain)++;
+  EXPECT_EQ(urban, 24);
+  EXPECT_EQ(terrain, 12);
+}
+
+}  // namespace
+}  // namespace optinav::sim
