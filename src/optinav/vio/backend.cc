@@ -244,7 +244,11 @@ StateEstimate SlidingWindowBackend::AddFrame(int64_t t_ns, const ImuPreintegrati
   State* added = states_.back().get();
   AddObservations(added, observations);
   TriangulateNew(added);
-  Optimize();
+  if (keyframe || states_.size() < 3) {
+    Optimize();
+  } else {
+    OptimizeNewest();
+  }
   RemoveOutliers();
   TriangulateNew(added);
   if (options_.use_imu) RelinearizeBiases();
@@ -307,6 +311,54 @@ int SlidingWindowBackend::SizeOf(const double* block) const {
     if (block == s->speed_bias) return kSpeedBiasSize;
   }
   return kPointSize;
+}
+
+void SlidingWindowBackend::OptimizeNewest() {
+  // Between keyframes: only the newest state moves, against the previous state and the
+  // landmarks held fixed (motion-only tracking; the full window is solved at keyframes).
+  ceres::Problem::Options problem_options;
+  problem_options.cost_function_ownership = ceres::TAKE_OWNERSHIP;
+  problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(problem_options);
+  State& newest = *states_.back();
+  State& previous = *states_[states_.size() - 2];
+  for (State* s : {&previous, &newest}) {
+    problem.AddParameterBlock(s->pose, kPoseSize, const_cast<ceres::Manifold*>(PoseManifold()));
+    if (options_.use_imu) problem.AddParameterBlock(s->speed_bias, kSpeedBiasSize);
+  }
+  problem.SetParameterBlockConstant(previous.pose);
+  if (options_.use_imu) {
+    problem.SetParameterBlockConstant(previous.speed_bias);
+    if (newest.has_preintegration && newest.preintegration.dt_s() > 0)
+      problem.AddResidualBlock(CreateImuFactor(newest.preintegration, options_.gravity), nullptr,
+                               previous.pose, previous.speed_bias, newest.pose, newest.speed_bias);
+  }
+  int num_observations = 0;
+  for (auto& spec : BuildResiduals([&](const State* s) { return s == &newest; },
+                                   [](const Landmark*) { return true; })) {
+    if (!problem.HasParameterBlock(spec->blocks[1])) {
+      problem.AddParameterBlock(spec->blocks[1], kPointSize);
+      problem.SetParameterBlockConstant(spec->blocks[1]);
+    }
+    problem.AddResidualBlock(spec->cost.release(), const_cast<ceres::LossFunction*>(spec->loss),
+                             spec->blocks);
+    ++num_observations;
+  }
+  ceres::Solver::Options solver_options;
+  solver_options.max_num_iterations = options_.max_iterations;
+  solver_options.max_solver_time_in_seconds = options_.max_solver_time_s;
+  solver_options.num_threads = 1;
+  solver_options.logging_type = ceres::SILENT;
+  solver_options.linear_solver_type = ceres::DENSE_QR;
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver_options, &problem, &summary);
+  stats_.num_observations = num_observations;
+  stats_.solver_iterations = static_cast<int>(summary.iterations.size());
+  stats_.initial_cost = summary.initial_cost;
+  stats_.final_cost = summary.final_cost;
+  stats_.solver_usable = summary.IsSolutionUsable();
+  Eigen::Map<Eigen::Quaterniond>(newest.pose + 3).normalize();
 }
 
 void SlidingWindowBackend::Optimize() {

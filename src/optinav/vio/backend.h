@@ -9,6 +9,8 @@
 //   - extra timed factors (TimedFactor): the extension point for absolute measurements at
 //     arbitrary timestamps (GNSS positions, map fixes), attached to the state at or before their
 //     time with the IMU preintegrated from that state to the measurement time.
+// The whole window is optimised when the new frame is a keyframe; otherwise only the new state
+// moves (motion-only, previous state and landmarks fixed), which keeps the per-frame cost low.
 // When a new frame arrives and the previous newest frame was not a keyframe, that frame is
 // dropped (its IMU interval is merged into the next one, its observations discarded). When the
 // window holds more than `window_keyframes` keyframes, the oldest is marginalised with a Schur
@@ -145,6 +147,7 @@ class SlidingWindowBackend {
       const std::function<bool(const State*)>& state_filter,
       const std::function<bool(const Landmark*)>& landmark_filter) const;
   void Optimize();
+  void OptimizeNewest();
   void RemoveOutliers();
   void MarginalizeOldest();
   void RelinearizeBiases();

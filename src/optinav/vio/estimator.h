@@ -43,8 +43,8 @@ struct VioOptions {
   double still_max_gyro_std = 0.02;   // rad/s
   double still_max_accel_std = 0.15;  // m/s^2
   int min_init_stereo_features = 15;  // stereo matches needed to start
-  double motion_init_tilt_sigma_rad = 0.1;
-  double motion_init_velocity_sigma_m_s = 2.0;
+  double motion_init_tilt_sigma_rad = 0.5;
+  double motion_init_velocity_sigma_m_s = 5.0;
   // Failure detection.
   double max_frame_gap_s = 0.5;      // larger jumps between frames end the track
   double max_imu_gap_s = 0.05;       // larger gaps between IMU samples end the track

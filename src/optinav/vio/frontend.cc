@@ -177,7 +177,13 @@ bool StereoFrontend::DecideKeyframe(int64_t t_ns, const std::vector<Track>& trac
       const auto it = at_keyframe.find(t.id);
       if (it == at_keyframe.end()) continue;
       ++alive;
-      parallax += cv::norm(t.pixel - it->second);
+      // Rotation-compensated: where the keyframe pixel would be after the gyro rotation alone.
+      Eigen::Vector2d from = ToEigen(it->second);
+      if (has_rotation_since_keyframe_) {
+        const Eigen::Vector3d ray = cur_from_keyframe_ * rig_.left.Unproject(from);
+        if (const auto p = rig_.left.Project(ray)) from = *p;
+      }
+      parallax += (ToEigen(t.pixel) - from).norm();
     }
     if (alive > 0) parallax /= alive;
     if (!keyframe_tracks_.empty() &&
@@ -189,6 +195,8 @@ bool StereoFrontend::DecideKeyframe(int64_t t_ns, const std::vector<Track>& trac
     has_keyframe_ = true;
     keyframe_t_ns_ = t_ns;
     keyframe_tracks_ = tracks;
+    cur_from_keyframe_.setIdentity();
+    has_rotation_since_keyframe_ = true;
   }
   return keyframe;
 }
@@ -291,6 +299,11 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
   out.stats.detected = static_cast<int>(tracks.size() - before);
   lap("frontend.detect");
 
+  if (cur_from_prev) {
+    cur_from_keyframe_ = (*cur_from_prev * cur_from_keyframe_).normalized();
+  } else {
+    has_rotation_since_keyframe_ = false;
+  }
   // 4. Keyframe decision (on the left tracks), then stereo matching: every track at keyframes
   // (the backend keeps only keyframe observations and the newest frame's), else only tracks
   // never matched yet (new landmarks need their first stereo triangulation).

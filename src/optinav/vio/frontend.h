@@ -8,7 +8,7 @@
 //     coordinates (skipped when the median flow is below a pixel: no baseline to test);
 //  3. new Shi-Tomasi corners fill the grid cells that lack features, away from existing ones;
 //  4. keyframe selection: time since the last keyframe, fraction of its tracks still alive, and
-//     mean pixel parallax since it;
+//     mean pixel parallax since it (with the gyro rotation removed when it is given);
 //  5. stereo: KLT from left to right (with a backward check, starting from the track's last
 //     disparity or the median depth), accepted only when the undistorted right point lies within
 //     `epipolar_px` of the epipolar line of the left one and in front of both cameras. All tracks
@@ -105,6 +105,9 @@ class StereoFrontend {
   std::vector<Track> keyframe_tracks_;
   bool has_keyframe_ = false;
   double stereo_depth_guess_m_ = 3.0;
+  // Gyro rotation accumulated since the last keyframe (parallax is measured without it).
+  Eigen::Quaterniond cur_from_keyframe_ = Eigen::Quaterniond::Identity();
+  bool has_rotation_since_keyframe_ = false;
   TimingStats* timing_ = nullptr;  // median depth of the last stereo matches
 };
 
