@@ -182,7 +182,11 @@ expect_ok "vio with the documented config" "$BIN" vio --dataset "$MICRO" --out "
 expect_ok "vio stereo-only" "$BIN" vio --dataset "$MICRO" --out "$WORK/vio3.tum" --mode stereo --max-frames 20
 expect_error "vio missing dataset" "dataset folder not found" "$BIN" vio --dataset "$WORK/nope" --out "$WORK/x.tum"
 expect_error "vio bad mode" "unknown mode" "$BIN" vio --dataset "$MICRO" --out "$WORK/x.tum" --mode mono
-expect_error "vio airsim" "AirSim" "$BIN" vio --dataset "$MICRO" --out "$WORK/x.tum" --format airsim
+expect_error "vio airsim on a EuRoC folder" "airsim_rec.txt" "$BIN" vio --dataset "$MICRO" --out "$WORK/x.tum" --format airsim
+expect_error "vio airsim with IMU mode" "no IMU" "$BIN" vio --dataset "$MICRO" --out "$WORK/x.tum" --format airsim --mode stereo-imu
+"$BIN" sim --world urban --route car --duration 3 --scale 0.5 --format airsim --out "$WORK/airsim" >/dev/null 2>&1 || fail "sim airsim"
+expect_ok "vio airsim stereo-only" "$BIN" vio --dataset "$WORK/airsim" --format airsim --out "$WORK/airsim.tum"
+[[ $(grep -vc '^#' "$WORK/airsim.tum") -ge 50 ]] || fail "vio airsim wrote fewer than 50 poses"
 printf 'frontend:\n  max_featurez: 100\n' > "$WORK/bad.yaml"
 expect_error "vio unknown config key" "max_featurez" "$BIN" vio --dataset "$MICRO" --out "$WORK/x.tum" --config "$WORK/bad.yaml"
 printf 'backend:\n  window_keyframes: 1\n' > "$WORK/bad2.yaml"

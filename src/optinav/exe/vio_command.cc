@@ -45,14 +45,17 @@ nlohmann::json StatsJson(const vio::VioRunResult& r, const std::string& mode) {
 }  // namespace
 
 int RunVio(int argc, char** argv) {
-  CLI::App app{"Stereo visual-inertial odometry (Ceres sliding window) on a EuRoC/ASL dataset",
-               "optinav vio"};
+  CLI::App app{
+      "Stereo visual-inertial odometry (Ceres sliding window) on a EuRoC/ASL dataset or an AirSim "
+      "recording (stereo-only)",
+      "optinav vio"};
   std::string dataset, format = "euroc", config, out, camera_out, stats, mode_name,
                        log_level = "info";
   bool sequential = false;
   size_t max_frames = 0;
   app.add_option("--dataset", dataset, "sequence folder (holding mav0/)")->required();
-  app.add_option("--format", format, "dataset format: euroc|airsim")->capture_default_str();
+  app.add_option("--format", format, "dataset format: euroc|airsim (airsim: stereo-only)")
+      ->capture_default_str();
   app.add_option("--config", config, "YAML options (see config/vio_euroc.yaml); defaults built in");
   app.add_option("--out", out, "output trajectory of the body (IMU) frame, TUM")->required();
   app.add_option("--camera-out", camera_out, "also write the left camera's trajectory, TUM");
@@ -75,13 +78,7 @@ int RunVio(int argc, char** argv) {
     spdlog::error("{}", e.what());
     return 2;
   }
-  if (format == "airsim") {
-    spdlog::error(
-        "--format airsim: no AirSim recording reader exists in io/ yet; convert the "
-        "recording to EuRoC/ASL layout (stereo-only: --mode stereo)");
-    return 2;
-  }
-  if (format != "euroc") {
+  if (format != "euroc" && format != "airsim") {
     spdlog::error("--format: unknown format '{}' (euroc|airsim)", format);
     return 2;
   }
@@ -97,9 +94,11 @@ int RunVio(int argc, char** argv) {
     vio::VioRunOptions options;
     if (!config.empty()) options.vio = vio::LoadVioOptions(config);
     if (mode) options.vio.mode = *mode;
+    if (format == "airsim" && !mode) options.vio.mode = vio::VioMode::kStereo;  // no IMU in AirSim
     options.threaded = !sequential;
     options.max_frames = max_frames;
-    const vio::VioRunResult r = vio::RunVioOnEuroc(dataset, options);
+    const vio::VioRunResult r = format == "airsim" ? vio::RunVioOnAirsim(dataset, options)
+                                                   : vio::RunVioOnEuroc(dataset, options);
     if (r.estimates.empty())
       throw Error("no pose estimated (never initialised: no stereo features or no IMU window)",
                   {.file = dataset});

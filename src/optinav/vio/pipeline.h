@@ -1,4 +1,5 @@
-// The data provider and the run loop: reads a EuRoC/ASL dataset through the io layer, pairs
+// The data provider and the run loop: reads a EuRoC/ASL dataset (or an AirSim recording) through
+// the io layer, pairs
 // left/right images (same stamp within 1 ms; unpaired frames are skipped with a warning), feeds
 // the IMU up to each frame and runs the estimator.
 //   sequential mode: one thread, deterministic (tests, benchmarks);
@@ -24,6 +25,9 @@ struct VioRunOptions {
   size_t max_frames = 0;  // 0: all
   // false: a listed but missing image is an Error; true: the frame is skipped with a warning.
   bool skip_missing_images = true;
+  // AirSim recordings carry no calibration: the weather document's rig (rectified pinhole).
+  double airsim_hfov_deg = 90.0;
+  double airsim_baseline_m = 0.52;
 };
 
 struct VioRunResult {
@@ -39,6 +43,10 @@ struct VioRunResult {
 // Throws Error (naming file/line/field) on bad input: layout, calibration, unreadable images or
 // images of the wrong size.
 VioRunResult RunVioOnEuroc(const std::string& dataset_dir, const VioRunOptions& options);
+// An AirSim recording (io/airsim_recording.h), stereo-only (it has no IMU): left/right images by
+// name, the rig from airsim_hfov_deg / airsim_baseline_m, the camera mounting from
+// camera_info.csv when present (else looking along the body x axis).
+VioRunResult RunVioOnAirsim(const std::string& dataset_dir, const VioRunOptions& options);
 
 // The estimates as a trajectory of the body frame, or of the left camera with body_from_cam.
 Trajectory EstimatesToTrajectory(const std::vector<FrameEstimate>& estimates,
