@@ -313,14 +313,41 @@ int SlidingWindowBackend::SizeOf(const double* block) const {
   return kPointSize;
 }
 
+namespace {
+
+// Problems own their cost functions; losses and manifolds are shared and outlive them.
+ceres::Problem::Options ProblemOptions() {
+  ceres::Problem::Options o;
+  o.cost_function_ownership = ceres::TAKE_OWNERSHIP;
+  o.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  o.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  return o;
+}
+
+// Single-threaded (deterministic) Levenberg-Marquardt within the per-frame budget.
+ceres::Solver::Options SolverOptions(const BackendOptions& options) {
+  ceres::Solver::Options o;
+  o.max_num_iterations = options.max_iterations;
+  o.max_solver_time_in_seconds = options.max_solver_time_s;
+  o.num_threads = 1;
+  o.logging_type = ceres::SILENT;
+  o.minimizer_progress_to_stdout = false;
+  return o;
+}
+
+}  // namespace
+
+void SlidingWindowBackend::RecordSummary(const ceres::Solver::Summary& summary) {
+  stats_.solver_iterations = static_cast<int>(summary.iterations.size());
+  stats_.initial_cost = summary.initial_cost;
+  stats_.final_cost = summary.final_cost;
+  stats_.solver_usable = summary.IsSolutionUsable();
+}
+
 void SlidingWindowBackend::OptimizeNewest() {
   // Between keyframes: only the newest state moves, against the previous state and the
   // landmarks held fixed (motion-only tracking; the full window is solved at keyframes).
-  ceres::Problem::Options problem_options;
-  problem_options.cost_function_ownership = ceres::TAKE_OWNERSHIP;
-  problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  ceres::Problem problem(problem_options);
+  ceres::Problem problem(ProblemOptions());
   State& newest = *states_.back();
   State& previous = *states_[states_.size() - 2];
   for (State* s : {&previous, &newest}) {
@@ -345,28 +372,17 @@ void SlidingWindowBackend::OptimizeNewest() {
                              spec->blocks);
     ++num_observations;
   }
-  ceres::Solver::Options solver_options;
-  solver_options.max_num_iterations = options_.max_iterations;
-  solver_options.max_solver_time_in_seconds = options_.max_solver_time_s;
-  solver_options.num_threads = 1;
-  solver_options.logging_type = ceres::SILENT;
+  ceres::Solver::Options solver_options = SolverOptions(options_);
   solver_options.linear_solver_type = ceres::DENSE_QR;
   ceres::Solver::Summary summary;
   ceres::Solve(solver_options, &problem, &summary);
   stats_.num_observations = num_observations;
-  stats_.solver_iterations = static_cast<int>(summary.iterations.size());
-  stats_.initial_cost = summary.initial_cost;
-  stats_.final_cost = summary.final_cost;
-  stats_.solver_usable = summary.IsSolutionUsable();
+  RecordSummary(summary);
   Eigen::Map<Eigen::Quaterniond>(newest.pose + 3).normalize();
 }
 
 void SlidingWindowBackend::Optimize() {
-  ceres::Problem::Options problem_options;
-  problem_options.cost_function_ownership = ceres::TAKE_OWNERSHIP;
-  problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  ceres::Problem problem(problem_options);
+  ceres::Problem problem(ProblemOptions());
   // Landmarks are added first and no explicit ordering is given: Ceres then picks the
   // elimination set greedily in insertion order (stable, independent of addresses: a user
   // ordering is a set of pointers, whose order would make runs differ), which selects exactly
@@ -416,12 +432,7 @@ void SlidingWindowBackend::Optimize() {
     }
   }
 
-  ceres::Solver::Options solver_options;
-  solver_options.max_num_iterations = options_.max_iterations;
-  solver_options.max_solver_time_in_seconds = options_.max_solver_time_s;
-  solver_options.num_threads = 1;
-  solver_options.logging_type = ceres::SILENT;
-  solver_options.minimizer_progress_to_stdout = false;
+  ceres::Solver::Options solver_options = SolverOptions(options_);
   if (num_landmarks > 0) {
     solver_options.linear_solver_type = ceres::DENSE_SCHUR;
   } else {
@@ -431,10 +442,7 @@ void SlidingWindowBackend::Optimize() {
   ceres::Solve(solver_options, &problem, &summary);
   stats_.num_landmarks = num_landmarks;
   stats_.num_observations = num_observations;
-  stats_.solver_iterations = static_cast<int>(summary.iterations.size());
-  stats_.initial_cost = summary.initial_cost;
-  stats_.final_cost = summary.final_cost;
-  stats_.solver_usable = summary.IsSolutionUsable();
+  RecordSummary(summary);
   // Keep quaternions normalised (the manifold keeps them on the sphere up to rounding).
   for (auto& s : states_) {
     Eigen::Map<Eigen::Quaterniond> q(s->pose + 3);

@@ -148,6 +148,7 @@ class SlidingWindowBackend {
       const std::function<bool(const Landmark*)>& landmark_filter) const;
   void Optimize();
   void OptimizeNewest();
+  void RecordSummary(const ceres::Solver::Summary& summary);
   void RemoveOutliers();
   void MarginalizeOldest();
   void RelinearizeBiases();

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
+#include <variant>
 
 #include <fmt/format.h>
 
@@ -43,102 +45,92 @@ VioOptions LoadVioOptions(const std::string& path) {
   VioOptions o;
   const YAML::Node& root = file.root;
   if (!root.IsMap()) throw Error("expected a map of options", {.file = path});
-  // Every known key, by section; anything else is an error (a typo must not pass silently).
-  auto check_keys = [&](const YAML::Node& node, const std::vector<std::string>& keys) {
-    for (const auto& kv : node) {
-      const std::string key = kv.first.as<std::string>();
-      if (std::find(keys.begin(), keys.end(), key) == keys.end())
-        throw Error("unknown key", internal::YamlContext(file, kv.first, key));
-    }
+  // Every key of a section and the field it sets; any other key is an error (a typo must not
+  // pass silently).
+  using Field = std::variant<int*, double*>;
+  using Section = std::vector<std::pair<const char*, Field>>;
+  FrontendOptions& f = o.frontend;
+  BackendOptions& b = o.backend;
+  const std::map<std::string, Section> sections = {
+      {"frontend",
+       {{"max_features", &f.max_features},
+        {"grid_cols", &f.grid_cols},
+        {"grid_rows", &f.grid_rows},
+        {"min_distance_px", &f.min_distance_px},
+        {"quality_level", &f.quality_level},
+        {"klt_window_px", &f.klt_window_px},
+        {"stereo_window_px", &f.stereo_window_px},
+        {"klt_pyramid_levels", &f.klt_pyramid_levels},
+        {"klt_max_iterations", &f.klt_max_iterations},
+        {"forward_backward_px", &f.forward_backward_px},
+        {"ransac_px", &f.ransac_px},
+        {"epipolar_px", &f.epipolar_px},
+        {"border_px", &f.border_px},
+        {"keyframe_max_interval_s", &f.keyframe_max_interval_s},
+        {"keyframe_min_tracked_ratio", &f.keyframe_min_tracked_ratio},
+        {"keyframe_min_parallax_px", &f.keyframe_min_parallax_px}}},
+      {"backend",
+       {{"window_keyframes", &b.window_keyframes},
+        {"pixel_sigma", &b.pixel_sigma},
+        {"huber_pixels", &b.huber_pixels},
+        {"outlier_pixels", &b.outlier_pixels},
+        {"min_depth_m", &b.min_depth_m},
+        {"max_depth_m", &b.max_depth_m},
+        {"max_iterations", &b.max_iterations},
+        {"max_solver_time_s", &b.max_solver_time_s},
+        {"relinearize_gyro_bias", &b.relinearize_gyro_bias},
+        {"relinearize_accel_bias", &b.relinearize_accel_bias},
+        {"prior_position_sigma_m", &b.prior_position_sigma_m},
+        {"prior_yaw_sigma_rad", &b.prior_yaw_sigma_rad},
+        {"prior_tilt_sigma_rad", &b.prior_tilt_sigma_rad},
+        {"prior_velocity_sigma_m_s", &b.prior_velocity_sigma_m_s},
+        {"prior_gyro_bias_sigma", &b.prior_gyro_bias_sigma},
+        {"prior_accel_bias_sigma", &b.prior_accel_bias_sigma}}},
+      {"initialization",
+       {{"init_window_s", &o.init_window_s},
+        {"still_max_gyro_std", &o.still_max_gyro_std},
+        {"still_max_accel_std", &o.still_max_accel_std},
+        {"min_init_stereo_features", &o.min_init_stereo_features},
+        {"motion_init_tilt_sigma_rad", &o.motion_init_tilt_sigma_rad},
+        {"motion_init_velocity_sigma_m_s", &o.motion_init_velocity_sigma_m_s}}},
+      {"failure",
+       {{"max_frame_gap_s", &o.max_frame_gap_s},
+        {"max_imu_gap_s", &o.max_imu_gap_s},
+        {"min_tracked_landmarks", &o.min_tracked_landmarks},
+        {"max_weak_tracking_s", &o.max_weak_tracking_s},
+        {"max_speed_m_s", &o.max_speed_m_s},
+        {"max_gyro_bias", &o.max_gyro_bias},
+        {"max_accel_bias", &o.max_accel_bias}}},
   };
-  check_keys(root, {"mode", "frontend", "backend", "initialization", "failure"});
-  if (root["mode"]) {
-    const std::string mode = YamlGet<std::string>(file, root, "mode");
-    const auto parsed = ParseVioMode(mode);
-    if (!parsed)
-      throw Error("expected stereo-imu or stereo, got '" + mode + "'",
-                  internal::YamlContext(file, root["mode"], "mode"));
-    o.mode = *parsed;
-  }
-  if (const YAML::Node f = root["frontend"]) {
-    check_keys(
-        f, {"max_features", "grid_cols", "grid_rows", "min_distance_px", "quality_level",
-            "klt_window_px", "stereo_window_px", "klt_pyramid_levels", "klt_max_iterations",
-            "forward_backward_px", "ransac_px", "epipolar_px", "border_px",
-            "keyframe_max_interval_s", "keyframe_min_tracked_ratio", "keyframe_min_parallax_px"});
-    FrontendOptions& x = o.frontend;
-    x.max_features = YamlGetOr(file, f, "max_features", x.max_features);
-    x.grid_cols = YamlGetOr(file, f, "grid_cols", x.grid_cols);
-    x.grid_rows = YamlGetOr(file, f, "grid_rows", x.grid_rows);
-    x.min_distance_px = YamlGetOr(file, f, "min_distance_px", x.min_distance_px);
-    x.quality_level = YamlGetOr(file, f, "quality_level", x.quality_level);
-    x.klt_window_px = YamlGetOr(file, f, "klt_window_px", x.klt_window_px);
-    x.stereo_window_px = YamlGetOr(file, f, "stereo_window_px", x.stereo_window_px);
-    x.klt_pyramid_levels = YamlGetOr(file, f, "klt_pyramid_levels", x.klt_pyramid_levels);
-    x.klt_max_iterations = YamlGetOr(file, f, "klt_max_iterations", x.klt_max_iterations);
-    x.forward_backward_px = YamlGetOr(file, f, "forward_backward_px", x.forward_backward_px);
-    x.ransac_px = YamlGetOr(file, f, "ransac_px", x.ransac_px);
-    x.epipolar_px = YamlGetOr(file, f, "epipolar_px", x.epipolar_px);
-    x.border_px = YamlGetOr(file, f, "border_px", x.border_px);
-    x.keyframe_max_interval_s =
-        YamlGetOr(file, f, "keyframe_max_interval_s", x.keyframe_max_interval_s);
-    x.keyframe_min_tracked_ratio =
-        YamlGetOr(file, f, "keyframe_min_tracked_ratio", x.keyframe_min_tracked_ratio);
-    x.keyframe_min_parallax_px =
-        YamlGetOr(file, f, "keyframe_min_parallax_px", x.keyframe_min_parallax_px);
-  }
-  if (const YAML::Node b = root["backend"]) {
-    check_keys(b, {"window_keyframes", "pixel_sigma", "huber_pixels", "outlier_pixels",
-                   "min_depth_m", "max_depth_m", "max_iterations", "max_solver_time_s",
-                   "relinearize_gyro_bias", "relinearize_accel_bias", "prior_position_sigma_m",
-                   "prior_yaw_sigma_rad", "prior_tilt_sigma_rad", "prior_velocity_sigma_m_s",
-                   "prior_gyro_bias_sigma", "prior_accel_bias_sigma"});
-    BackendOptions& x = o.backend;
-    x.window_keyframes = YamlGetOr(file, b, "window_keyframes", x.window_keyframes);
-    x.pixel_sigma = YamlGetOr(file, b, "pixel_sigma", x.pixel_sigma);
-    x.huber_pixels = YamlGetOr(file, b, "huber_pixels", x.huber_pixels);
-    x.outlier_pixels = YamlGetOr(file, b, "outlier_pixels", x.outlier_pixels);
-    x.min_depth_m = YamlGetOr(file, b, "min_depth_m", x.min_depth_m);
-    x.max_depth_m = YamlGetOr(file, b, "max_depth_m", x.max_depth_m);
-    x.max_iterations = YamlGetOr(file, b, "max_iterations", x.max_iterations);
-    x.max_solver_time_s = YamlGetOr(file, b, "max_solver_time_s", x.max_solver_time_s);
-    x.relinearize_gyro_bias = YamlGetOr(file, b, "relinearize_gyro_bias", x.relinearize_gyro_bias);
-    x.relinearize_accel_bias =
-        YamlGetOr(file, b, "relinearize_accel_bias", x.relinearize_accel_bias);
-    x.prior_position_sigma_m =
-        YamlGetOr(file, b, "prior_position_sigma_m", x.prior_position_sigma_m);
-    x.prior_yaw_sigma_rad = YamlGetOr(file, b, "prior_yaw_sigma_rad", x.prior_yaw_sigma_rad);
-    x.prior_tilt_sigma_rad = YamlGetOr(file, b, "prior_tilt_sigma_rad", x.prior_tilt_sigma_rad);
-    x.prior_velocity_sigma_m_s =
-        YamlGetOr(file, b, "prior_velocity_sigma_m_s", x.prior_velocity_sigma_m_s);
-    x.prior_gyro_bias_sigma = YamlGetOr(file, b, "prior_gyro_bias_sigma", x.prior_gyro_bias_sigma);
-    x.prior_accel_bias_sigma =
-        YamlGetOr(file, b, "prior_accel_bias_sigma", x.prior_accel_bias_sigma);
-  }
-  if (const YAML::Node i = root["initialization"]) {
-    check_keys(i, {"init_window_s", "still_max_gyro_std", "still_max_accel_std",
-                   "min_init_stereo_features", "motion_init_tilt_sigma_rad",
-                   "motion_init_velocity_sigma_m_s"});
-    o.init_window_s = YamlGetOr(file, i, "init_window_s", o.init_window_s);
-    o.still_max_gyro_std = YamlGetOr(file, i, "still_max_gyro_std", o.still_max_gyro_std);
-    o.still_max_accel_std = YamlGetOr(file, i, "still_max_accel_std", o.still_max_accel_std);
-    o.min_init_stereo_features =
-        YamlGetOr(file, i, "min_init_stereo_features", o.min_init_stereo_features);
-    o.motion_init_tilt_sigma_rad =
-        YamlGetOr(file, i, "motion_init_tilt_sigma_rad", o.motion_init_tilt_sigma_rad);
-    o.motion_init_velocity_sigma_m_s =
-        YamlGetOr(file, i, "motion_init_velocity_sigma_m_s", o.motion_init_velocity_sigma_m_s);
-  }
-  if (const YAML::Node f = root["failure"]) {
-    check_keys(f, {"max_frame_gap_s", "max_imu_gap_s", "min_tracked_landmarks",
-                   "max_weak_tracking_s", "max_speed_m_s", "max_gyro_bias", "max_accel_bias"});
-    o.max_frame_gap_s = YamlGetOr(file, f, "max_frame_gap_s", o.max_frame_gap_s);
-    o.max_imu_gap_s = YamlGetOr(file, f, "max_imu_gap_s", o.max_imu_gap_s);
-    o.min_tracked_landmarks = YamlGetOr(file, f, "min_tracked_landmarks", o.min_tracked_landmarks);
-    o.max_weak_tracking_s = YamlGetOr(file, f, "max_weak_tracking_s", o.max_weak_tracking_s);
-    o.max_speed_m_s = YamlGetOr(file, f, "max_speed_m_s", o.max_speed_m_s);
-    o.max_gyro_bias = YamlGetOr(file, f, "max_gyro_bias", o.max_gyro_bias);
-    o.max_accel_bias = YamlGetOr(file, f, "max_accel_bias", o.max_accel_bias);
+  for (const auto& kv : root) {
+    const std::string key = kv.first.as<std::string>();
+    if (key == "mode") {
+      const std::string mode = YamlGet<std::string>(file, root, "mode");
+      const auto parsed = ParseVioMode(mode);
+      if (!parsed)
+        throw Error("expected stereo-imu or stereo, got '" + mode + "'",
+                    internal::YamlContext(file, kv.second, "mode"));
+      o.mode = *parsed;
+      continue;
+    }
+    const auto section = sections.find(key);
+    if (section == sections.end())
+      throw Error("unknown key", internal::YamlContext(file, kv.first, key));
+    const YAML::Node& node = kv.second;
+    if (!node.IsMap())
+      throw Error("expected a map of options", internal::YamlContext(file, node, key));
+    for (const auto& entry : node) {
+      const std::string name = entry.first.as<std::string>();
+      const auto field = std::find_if(section->second.begin(), section->second.end(),
+                                      [&](const auto& p) { return name == p.first; });
+      if (field == section->second.end())
+        throw Error("unknown key", internal::YamlContext(file, entry.first, key + "." + name));
+      std::visit(
+          [&](auto* target) {
+            *target = YamlGet<std::decay_t<decltype(*target)>>(file, node, name);
+          },
+          field->second);
+    }
   }
   if (const std::string e = o.Check(); !e.empty()) throw Error(e, {.file = path});
   return o;
