@@ -115,9 +115,11 @@ class SlidingWindowBackend {
   ~SlidingWindowBackend();
 
   // Starts the window with the first state; the prior fixes the gauge around it. Negative
-  // sigmas take the options' prior_tilt_sigma_rad / prior_velocity_sigma_m_s.
+  // sigmas take the options' prior_tilt_sigma_rad / prior_velocity_sigma_m_s /
+  // prior_accel_bias_sigma.
   void Initialize(const StateEstimate& state, const std::vector<StereoObservation>& observations,
-                  double tilt_sigma_rad = -1, double velocity_sigma_m_s = -1);
+                  double tilt_sigma_rad = -1, double velocity_sigma_m_s = -1,
+                  double accel_bias_sigma = -1);
   bool initialized() const { return !states_.empty(); }
   void Reset();
 
@@ -152,7 +154,8 @@ class SlidingWindowBackend {
   void RemoveOutliers();
   void MarginalizeOldest();
   void RelinearizeBiases();
-  void SetInitialPrior(State* state, double tilt_sigma_rad, double velocity_sigma_m_s);
+  void SetInitialPrior(State* state, double tilt_sigma_rad, double velocity_sigma_m_s,
+                       double accel_bias_sigma);
   State* AnchorFor(int64_t t_ns, ImuPreintegration* anchor_to_t) const;
   const ceres::Manifold* ManifoldOf(const double* block) const;
   int SizeOf(const double* block) const;

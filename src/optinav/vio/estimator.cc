@@ -30,7 +30,8 @@ std::string VioOptions::Check() const {
   if (!(still_max_gyro_std > 0) || !(still_max_accel_std > 0))
     return "still_max_gyro_std and still_max_accel_std must be > 0";
   if (min_init_stereo_features < 3) return "min_init_stereo_features must be >= 3";
-  if (!(motion_init_tilt_sigma_rad > 0) || !(motion_init_velocity_sigma_m_s > 0))
+  if (!(motion_init_tilt_sigma_rad > 0) || !(motion_init_velocity_sigma_m_s > 0) ||
+      !(motion_init_accel_bias_sigma > 0))
     return "motion_init sigmas must be > 0";
   if (!(max_frame_gap_s > 0) || !(max_imu_gap_s > 0)) return "max gaps must be > 0";
   if (min_tracked_landmarks < 0) return "min_tracked_landmarks must be >= 0";
@@ -92,7 +93,8 @@ VioOptions LoadVioOptions(const std::string& path) {
         {"still_max_accel_std", &o.still_max_accel_std},
         {"min_init_stereo_features", &o.min_init_stereo_features},
         {"motion_init_tilt_sigma_rad", &o.motion_init_tilt_sigma_rad},
-        {"motion_init_velocity_sigma_m_s", &o.motion_init_velocity_sigma_m_s}}},
+        {"motion_init_velocity_sigma_m_s", &o.motion_init_velocity_sigma_m_s},
+        {"motion_init_accel_bias_sigma", &o.motion_init_accel_bias_sigma}}},
       {"failure",
        {{"max_frame_gap_s", &o.max_frame_gap_s},
         {"max_imu_gap_s", &o.max_imu_gap_s},
@@ -252,7 +254,7 @@ bool VioEstimator::TryInitialize(int64_t t_ns, const FrontendOutput& features) {
   if (stereo < options_.min_init_stereo_features) return false;
   StateEstimate state;
   state.t_ns = t_ns;
-  double tilt_sigma = -1, velocity_sigma = -1;
+  double tilt_sigma = -1, velocity_sigma = -1, accel_bias_sigma = -1;
   if (options_.mode == VioMode::kStereoImu) {
     const int64_t t0 = t_ns - static_cast<int64_t>(options_.init_window_s * 1e9);
     std::vector<const TimedImuSample*> window;
@@ -298,6 +300,7 @@ bool VioEstimator::TryInitialize(int64_t t_ns, const FrontendOutput& features) {
       state.bias = last_good_ ? last_good_->bias : ImuBias{};
       tilt_sigma = options_.motion_init_tilt_sigma_rad;
       velocity_sigma = options_.motion_init_velocity_sigma_m_s;
+      accel_bias_sigma = options_.motion_init_accel_bias_sigma;
       last_init_kind_ = "in-motion";
     }
     spdlog::info(
@@ -309,7 +312,7 @@ bool VioEstimator::TryInitialize(int64_t t_ns, const FrontendOutput& features) {
     last_init_kind_ = "stereo";
   }
   if (last_good_) state.world_from_body.translation = last_good_->world_from_body.translation;
-  backend_.Initialize(state, features.observations, tilt_sigma, velocity_sigma);
+  backend_.Initialize(state, features.observations, tilt_sigma, velocity_sigma, accel_bias_sigma);
   ++initializations_;
   if (lost_since_ns_) {
     lost_.push_back({*lost_since_ns_, t_ns, *lost_reason_});

@@ -45,6 +45,8 @@ struct VioOptions {
   int min_init_stereo_features = 15;  // stereo matches needed to start
   double motion_init_tilt_sigma_rad = 0.5;
   double motion_init_velocity_sigma_m_s = 5.0;
+  // In motion, tilt and accelerometer bias are confounded at first: a tight bias prior.
+  double motion_init_accel_bias_sigma = 0.05;
   // Failure detection.
   double max_frame_gap_s = 0.5;      // larger jumps between frames end the track
   double max_imu_gap_s = 0.05;       // larger gaps between IMU samples end the track
