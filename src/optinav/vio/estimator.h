@@ -6,7 +6,8 @@
 // of the 0.1 s block means of gyro and accel under thresholds), gravity is the mean specific force,
 // the gyro bias the mean angular rate, velocity zero ("static"). Otherwise ("in motion") attitude
 // comes from the mean specific force over the window and velocity is left to the window to
-// estimate, with loose priors on tilt and velocity. In stereo mode the first pose is the identity
+// estimate, with loose priors on tilt and velocity and a tight one on the accelerometer bias.
+// In stereo mode the first pose is the identity
 // (the world is the first body frame) and the pose prior is tight. Failure handling: a frame-time
 // jump, an IMU gap, too few constrained landmarks for too long, or a diverging estimate (speed,
 // biases, non-finite values) ends the current track: the lost interval is recorded with its reason,
@@ -39,9 +40,10 @@ struct VioOptions {
   FrontendOptions frontend;
   BackendOptions backend;
   // Initialisation.
-  double init_window_s = 0.5;         // IMU window checked for stillness, s
+  double init_window_s = 0.5;  // IMU window checked for stillness, s
+  // Stillness: standard deviation of the 0.1 s block means over the window.
   double still_max_gyro_std = 0.02;   // rad/s
-  double still_max_accel_std = 0.15;  // m/s^2
+  double still_max_accel_std = 0.25;  // m/s^2
   int min_init_stereo_features = 15;  // stereo matches needed to start
   double motion_init_tilt_sigma_rad = 0.5;
   double motion_init_velocity_sigma_m_s = 5.0;

@@ -1,6 +1,7 @@
 #include "optinav/vio/pipeline.h"
 
 #include <cstdio>
+#include <filesystem>
 #include <map>
 
 #include <gtest/gtest.h>
@@ -191,6 +192,55 @@ TEST_F(FailureTest, TimestampJumpAndRepeatedStamps) {
   std::printf("2 s frame jump: lost interval '%s'\n", e.lost_intervals()[0].reason.c_str());
   EXPECT_NE(e.lost_intervals()[0].reason.find("frame time jump"), std::string::npos);
   EXPECT_EQ(e.initializations(), 2);
+}
+
+}  // namespace
+}  // namespace optinav::vio
+
+namespace optinav::vio {
+namespace {
+
+TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
+  const std::filesystem::path config =
+      std::filesystem::path(__FILE__).parent_path() / "../../../config/vio_euroc.yaml";
+  const VioOptions file = LoadVioOptions(config.string());
+  const VioOptions d;
+  EXPECT_EQ(file.mode, d.mode);
+  EXPECT_EQ(file.frontend.max_features, d.frontend.max_features);
+  EXPECT_EQ(file.frontend.klt_window_px, d.frontend.klt_window_px);
+  EXPECT_EQ(file.frontend.stereo_window_px, d.frontend.stereo_window_px);
+  EXPECT_EQ(file.frontend.klt_max_iterations, d.frontend.klt_max_iterations);
+  EXPECT_EQ(file.frontend.keyframe_min_parallax_px, d.frontend.keyframe_min_parallax_px);
+  EXPECT_EQ(file.frontend.keyframe_min_tracked_ratio, d.frontend.keyframe_min_tracked_ratio);
+  EXPECT_EQ(file.backend.window_keyframes, d.backend.window_keyframes);
+  EXPECT_EQ(file.backend.max_iterations, d.backend.max_iterations);
+  EXPECT_EQ(file.backend.huber_pixels, d.backend.huber_pixels);
+  EXPECT_EQ(file.backend.prior_accel_bias_sigma, d.backend.prior_accel_bias_sigma);
+  EXPECT_EQ(file.still_max_gyro_std, d.still_max_gyro_std);
+  EXPECT_EQ(file.still_max_accel_std, d.still_max_accel_std);
+  EXPECT_EQ(file.motion_init_tilt_sigma_rad, d.motion_init_tilt_sigma_rad);
+  EXPECT_EQ(file.motion_init_accel_bias_sigma, d.motion_init_accel_bias_sigma);
+  EXPECT_EQ(file.max_imu_gap_s, d.max_imu_gap_s);
+  EXPECT_EQ(file.min_tracked_landmarks, d.min_tracked_landmarks);
+  EXPECT_EQ(file.max_accel_bias, d.max_accel_bias);
+}
+
+TEST(VioConfig, BadConfigsNameTheKey) {
+  const auto dir = optinav::testing::MakeTempDir("vio_config");
+  const std::string unknown =
+      optinav::testing::WriteFile(dir / "a.yaml", "backend:\n  windw_keyframes: 4\n");
+  try {
+    LoadVioOptions(unknown);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("backend.windw_keyframes"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("a.yaml:2"), std::string::npos) << e.what();
+  }
+  const std::string invalid =
+      optinav::testing::WriteFile(dir / "b.yaml", "failure:\n  max_imu_gap_s: -1\n");
+  EXPECT_THROW(LoadVioOptions(invalid), Error);
+  const std::string mode = optinav::testing::WriteFile(dir / "c.yaml", "mode: mono\n");
+  EXPECT_THROW(LoadVioOptions(mode), Error);
 }
 
 }  // namespace
