@@ -8,11 +8,11 @@
 // comes from the mean specific force over the window and velocity is left to the window to
 // estimate, with loose priors on tilt and velocity and a tight one on the accelerometer bias.
 // In stereo mode the first pose is the identity (the world is the first body frame) and the pose
-// prior is tight. Failure handling: a frame-time
-// jump, an IMU gap, too few constrained landmarks for too long, or a diverging estimate (speed,
-// biases, non-finite values) ends the current track: the lost interval is recorded with its reason,
-// the backend and frontend restart, and the estimator re-initialises at the next usable frame,
-// continuing from the last good position and yaw.
+// prior is tight.
+// Failure handling: a frame-time jump, an IMU gap, too few constrained landmarks for too long, or
+// a diverging estimate (speed, biases, non-finite values) ends the current track: the lost
+// interval is recorded with its reason, the backend restarts, and the estimator re-initialises
+// at the next usable frame, continuing from the last good position and yaw.
 #pragma once
 
 #include <cstdint>
