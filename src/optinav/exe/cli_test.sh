@@ -205,6 +205,58 @@ echo "keep me" > "$WORK/keep.json"
 "$BIN" eval ape "$WORK/nan.txt" "$WORK/nan.txt" --json "$WORK/keep.json" >/dev/null 2>&1
 grep -q "keep me" "$WORK/keep.json" || fail "existing --json output was overwritten by a failed run"
 
+# --- VIO on the real EuRoC clip (short runs: --max-frames) and its bad inputs.
+MICRO="$DATA/euroc/V1_01_micro"
+expect_ok "vio euroc" "$BIN" vio --dataset "$MICRO" --out "$WORK/vio.tum" --stats "$WORK/vio.json" \
+  --camera-out "$WORK/vio_cam.tum" --max-frames 30 --sequential
+[[ $(grep -vc '^#' "$WORK/vio.tum") -ge 20 ]] || fail "vio wrote fewer than 20 poses"
+[[ $(grep -vc '^#' "$WORK/vio_cam.tum") -eq $(grep -vc '^#' "$WORK/vio.tum") ]] || fail "vio camera trajectory"
+for key in '"frontend"' '"backend"' '"median_ms"' '"p95_ms"' '"lost_intervals"' '"first_initialization": "static"'; do
+  grep -q "$key" "$WORK/vio.json" || fail "vio.json lacks $key"
+done
+expect_ok "vio with the documented config" "$BIN" vio --dataset "$MICRO" --out "$WORK/vio2.tum" \
+  --config "$(dirname "$0")/../../../config/vio_euroc.yaml" --max-frames 20
+expect_ok "vio stereo-only" "$BIN" vio --dataset "$MICRO" --out "$WORK/vio3.tum" --mode stereo --max-frames 20
+expect_error "vio missing dataset" "dataset folder not found" "$BIN" vio --dataset "$WORK/nope" --out "$WORK/x.tum"
+expect_error "vio bad mode" "unknown mode" "$BIN" vio --dataset "$MICRO" --out "$WORK/x.tum" --mode mono
+expect_error "vio airsim on a EuRoC folder" "airsim_rec.txt" "$BIN" vio --dataset "$MICRO" --out "$WORK/x.tum" --format airsim
+expect_error "vio airsim with IMU mode" "no IMU" "$BIN" vio --dataset "$MICRO" --out "$WORK/x.tum" --format airsim --mode stereo-imu
+"$BIN" sim --world urban --route car --duration 3 --scale 0.5 --format airsim --out "$WORK/airsim" >/dev/null 2>&1 || fail "sim airsim"
+expect_ok "vio airsim stereo-only" "$BIN" vio --dataset "$WORK/airsim" --format airsim --out "$WORK/airsim.tum"
+[[ $(grep -vc '^#' "$WORK/airsim.tum") -ge 50 ]] || fail "vio airsim wrote fewer than 50 poses"
+printf 'frontend:\n  max_featurez: 100\n' > "$WORK/bad.yaml"
+expect_error "vio unknown config key" "max_featurez" "$BIN" vio --dataset "$MICRO" --out "$WORK/x.tum" --config "$WORK/bad.yaml"
+printf 'backend:\n  window_keyframes: 1\n' > "$WORK/bad2.yaml"
+expect_error "vio invalid config value" "window_keyframes" "$BIN" vio --dataset "$MICRO" --out "$WORK/x.tum" --config "$WORK/bad2.yaml"
+# A copy of the clip (images linked) to break one thing at a time.
+clip() {
+  rm -rf "$WORK/clip"; mkdir -p "$WORK/clip/mav0"
+  for c in cam0 cam1; do
+    mkdir -p "$WORK/clip/mav0/$c/data"
+    cp "$MICRO/mav0/$c/sensor.yaml" "$MICRO/mav0/$c/data.csv" "$WORK/clip/mav0/$c/"
+    for f in "$MICRO/mav0/$c/data/"*.png; do ln -s "$f" "$WORK/clip/mav0/$c/data/"; done
+  done
+  mkdir -p "$WORK/clip/mav0/imu0"; cp "$MICRO/mav0/imu0/"* "$WORK/clip/mav0/imu0/"
+}
+clip; grep -v intrinsics "$MICRO/mav0/cam0/sensor.yaml" > "$WORK/clip/mav0/cam0/sensor.yaml"
+expect_error "vio sensor.yaml without intrinsics" "intrinsics" "$BIN" vio --dataset "$WORK/clip" --out "$WORK/x.tum"
+clip; first=$(sed -n 2p "$MICRO/mav0/cam0/data.csv" | cut -d, -f2 | tr -d '\r')
+rm "$WORK/clip/mav0/cam0/data/$first"; cp "$DATA/images/box.png" "$WORK/clip/mav0/cam0/data/$first"
+expect_error "vio image of the wrong size" "resolution" "$BIN" vio --dataset "$WORK/clip" --out "$WORK/x.tum"
+clip; awk -F, 'NR==5 { $2 = "nan" } { print }' OFS=, "$MICRO/mav0/imu0/data.csv" > "$WORK/clip/mav0/imu0/data.csv"
+expect_error "vio NaN IMU sample" "data.csv:5" "$BIN" vio --dataset "$WORK/clip" --out "$WORK/x.tum"
+clip; awk -F, 'NR==3 { l = $0; next } NR==4 { print; print l; next } { print }' "$MICRO/mav0/cam0/data.csv" > "$WORK/clip/mav0/cam0/data.csv"
+expect_error "vio unsorted image stamps" "does not increase" "$BIN" vio --dataset "$WORK/clip" --out "$WORK/x.tum"
+clip; rm "$WORK/clip/mav0/cam0/data/$first"
+expect_ok "vio missing image (frame dropped, logged)" "$BIN" vio --dataset "$WORK/clip" --out "$WORK/x.tum" --max-frames 10
+grep -q "dropped 1 listed image" "$WORK/err.txt" || fail "vio: missing image not logged"
+# The IMU stops 2 s into the clip: the lost interval is reported, no crash, poses before it kept.
+clip; t_stop=$(( $(sed -n 2p "$MICRO/mav0/imu0/data.csv" | cut -d, -f1) + 2000000000 ))
+awk -F, -v t="$t_stop" '/^#/ || $1 < t' "$MICRO/mav0/imu0/data.csv" > "$WORK/clip/mav0/imu0/data.csv"
+expect_ok "vio IMU that stops" "$BIN" vio --dataset "$WORK/clip" --out "$WORK/x.tum" --stats "$WORK/stop.json"
+grep -q 'IMU gap' "$WORK/stop.json" || fail "vio: IMU stop not reported as a lost interval"
+[[ $(grep -vc '^#' "$WORK/x.tum") -ge 20 ]] || fail "vio: poses before the IMU stop missing"
+
 # --- The demo.
 expect_ok "demo" "$BIN" demo --out "$WORK/demo" --duration 60
 for f in groundtruth.csv estimate.tum ape_se3.json ape_se3.svg rpe_10m.json; do

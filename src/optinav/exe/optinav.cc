@@ -21,6 +21,7 @@ constexpr Command kCommands[] = {
     {"sim", optinav::RunSim, "simulate stereo + IMU + GNSS sequences with weather (EuRoC, AirSim)"},
     {"mission", optinav::RunMission,
      "GNSS-denied missions to a target over an orthophoto map (30-run experiments)"},
+    {"vio", optinav::RunVio, "stereo visual-inertial odometry on a EuRoC/ASL dataset"},
     {"demo", optinav::RunDemo, "run the end-to-end demo on generated data"},
 };
 

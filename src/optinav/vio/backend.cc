@@ -1,0 +1,564 @@
+#include "optinav/vio/backend.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "optinav/camera/camera.h"
+#include "optinav/util/error.h"
+
+namespace optinav::vio {
+
+struct SlidingWindowBackend::State {
+  int64_t t_ns = 0;
+  bool keyframe = true;
+  double pose[kPoseSize] = {0, 0, 0, 0, 0, 0, 1};
+  double speed_bias[kSpeedBiasSize] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
+  bool has_preintegration = false;
+  ImuPreintegration preintegration;  // previous state -> this one
+  std::map<uint64_t, StereoObservation> observations;
+
+  Rigid3d WorldFromBody() const {
+    return {Eigen::Quaterniond(pose[6], pose[3], pose[4], pose[5]).normalized(),
+            Eigen::Vector3d(pose[0], pose[1], pose[2])};
+  }
+  void SetPose(const Rigid3d& p) {
+    const Eigen::Quaterniond q = p.rotation.normalized();
+    pose[0] = p.translation.x(), pose[1] = p.translation.y(), pose[2] = p.translation.z();
+    pose[3] = q.x(), pose[4] = q.y(), pose[5] = q.z(), pose[6] = q.w();
+  }
+  Eigen::Vector3d Velocity() const { return {speed_bias[0], speed_bias[1], speed_bias[2]}; }
+  ImuBias Bias() const {
+    ImuBias b;
+    b.gyro = {speed_bias[3], speed_bias[4], speed_bias[5]};
+    b.accel = {speed_bias[6], speed_bias[7], speed_bias[8]};
+    return b;
+  }
+  void SetSpeedBias(const Eigen::Vector3d& v, const ImuBias& b) {
+    for (int i = 0; i < 3; ++i) {
+      speed_bias[i] = v[i];
+      speed_bias[3 + i] = b.gyro[i];
+      speed_bias[6 + i] = b.accel[i];
+    }
+  }
+  NavState Nav() const {
+    const Rigid3d p = WorldFromBody();
+    return {p.rotation, p.translation, Velocity()};
+  }
+  StateEstimate Estimate() const { return {t_ns, WorldFromBody(), Velocity(), Bias()}; }
+};
+
+struct SlidingWindowBackend::Landmark {
+  double position[kPointSize] = {0, 0, 0};
+  bool initialized = false;
+  int num_states = 0;  // states in the window observing it
+};
+
+std::string BackendOptions::Check() const {
+  if (window_keyframes < 2)
+    return "window_keyframes must be >= 2, got " + std::to_string(window_keyframes);
+  if (!(pixel_sigma > 0)) return "pixel_sigma must be > 0";
+  if (!(huber_pixels > 0)) return "huber_pixels must be > 0";
+  if (!(outlier_pixels > 0)) return "outlier_pixels must be > 0";
+  if (!(min_depth_m > 0) || !(max_depth_m > min_depth_m))
+    return "need 0 < min_depth_m < max_depth_m";
+  if (max_iterations < 1) return "max_iterations must be >= 1";
+  if (!(max_solver_time_s > 0)) return "max_solver_time_s must be > 0";
+  for (double s : {prior_position_sigma_m, prior_yaw_sigma_rad, prior_tilt_sigma_rad,
+                   prior_velocity_sigma_m_s, prior_gyro_bias_sigma, prior_accel_bias_sigma})
+    if (!(s > 0)) return "prior sigmas must be > 0";
+  for (double s : {imu_noise.gyro_noise_density, imu_noise.accel_noise_density,
+                   imu_noise.gyro_random_walk, imu_noise.accel_random_walk})
+    if (!(s > 0)) return "IMU noise densities and random walks must be > 0";
+  return "";
+}
+
+SlidingWindowBackend::SlidingWindowBackend(const BackendOptions& options, const RigExtrinsics& rig)
+    : options_(options),
+      rig_(rig),
+      huber_(std::make_unique<ceres::HuberLoss>(options.huber_pixels / options.pixel_sigma)) {
+  const std::string problem = options_.Check();
+  OPTINAV_CHECK_MSG(problem.empty(), problem);
+}
+
+SlidingWindowBackend::~SlidingWindowBackend() = default;
+
+void SlidingWindowBackend::Reset() {
+  states_.clear();
+  landmarks_.clear();
+  timed_factors_.clear();
+  prior_ = LinearPrior();
+  rejected_tracks_.clear();
+  stats_ = BackendStats();
+}
+
+void SlidingWindowBackend::Initialize(const StateEstimate& estimate,
+                                      const std::vector<StereoObservation>& observations,
+                                      double tilt_sigma_rad, double velocity_sigma_m_s,
+                                      double accel_bias_sigma) {
+  Reset();
+  auto state = std::make_unique<State>();
+  state->t_ns = estimate.t_ns;
+  state->SetPose(estimate.world_from_body);
+  state->SetSpeedBias(estimate.velocity, estimate.bias);
+  states_.push_back(std::move(state));
+  SetInitialPrior(states_.back().get(),
+                  tilt_sigma_rad > 0 ? tilt_sigma_rad : options_.prior_tilt_sigma_rad,
+                  velocity_sigma_m_s > 0 ? velocity_sigma_m_s : options_.prior_velocity_sigma_m_s,
+                  accel_bias_sigma > 0 ? accel_bias_sigma : options_.prior_accel_bias_sigma);
+  AddObservations(states_.back().get(), observations);
+  TriangulateNew(states_.back().get());
+}
+
+void SlidingWindowBackend::SetInitialPrior(State* state, double tilt_sigma_rad,
+                                           double velocity_sigma_m_s, double accel_bias_sigma) {
+  prior_ = LinearPrior();
+  LinearPrior::Block pose;
+  pose.values = state->pose;
+  pose.ambient_size = kPoseSize;
+  pose.tangent_size = kPoseTangentSize;
+  pose.manifold = PoseManifold();
+  pose.x0.assign(state->pose, state->pose + kPoseSize);
+  prior_.blocks.push_back(pose);
+  // Tangent of the pose manifold: position (3), then a rotation vector applied on the left
+  // (world frame), so its z component is yaw. Without IMU the whole pose is the gauge.
+  Eigen::VectorXd sigma(options_.use_imu ? 15 : 6);
+  const double tilt = options_.use_imu ? tilt_sigma_rad : options_.prior_yaw_sigma_rad;
+  sigma.head<6>() << Eigen::Vector3d::Constant(options_.prior_position_sigma_m), tilt, tilt,
+      options_.prior_yaw_sigma_rad;
+  if (options_.use_imu) {
+    LinearPrior::Block sb;
+    sb.values = state->speed_bias;
+    sb.ambient_size = sb.tangent_size = kSpeedBiasSize;
+    sb.manifold = nullptr;
+    sb.x0.assign(state->speed_bias, state->speed_bias + kSpeedBiasSize);
+    prior_.blocks.push_back(sb);
+    sigma.tail<9>() << Eigen::Vector3d::Constant(velocity_sigma_m_s),
+        Eigen::Vector3d::Constant(options_.prior_gyro_bias_sigma),
+        Eigen::Vector3d::Constant(accel_bias_sigma);
+  }
+  prior_.J = sigma.cwiseInverse().asDiagonal();
+  prior_.r0 = Eigen::VectorXd::Zero(sigma.size());
+}
+
+void SlidingWindowBackend::AddObservations(State* state,
+                                           const std::vector<StereoObservation>& observations) {
+  for (const StereoObservation& obs : observations) {
+    if (rejected_tracks_.count(obs.track_id)) continue;
+    if (!obs.left.allFinite() || (obs.right && !obs.right->allFinite())) continue;
+    auto [it, inserted] = state->observations.emplace(obs.track_id, obs);
+    if (!inserted) continue;
+    auto& landmark = landmarks_[obs.track_id];
+    if (!landmark) landmark = std::make_unique<Landmark>();
+    ++landmark->num_states;
+  }
+}
+
+void SlidingWindowBackend::TriangulateNew(State* state) {
+  const Rigid3d body_from_world = state->WorldFromBody().Inverse();
+  const Rigid3d cam0_from_world = rig_.cam0_from_body * body_from_world;
+  const Rigid3d cam1_from_world = rig_.cam1_from_body * body_from_world;
+  for (const auto& [id, obs] : state->observations) {
+    Landmark& landmark = *landmarks_.at(id);
+    if (landmark.initialized || !obs.right) continue;
+    const auto point =
+        camera::TriangulateTwoView(cam0_from_world, cam1_from_world, obs.left, *obs.right);
+    if (!point) continue;
+    const double depth = (cam0_from_world * *point).z();
+    if (depth < options_.min_depth_m || depth > options_.max_depth_m) continue;
+    for (int i = 0; i < 3; ++i) landmark.position[i] = (*point)[i];
+    landmark.initialized = true;
+  }
+}
+
+void SlidingWindowBackend::AddTimedFactor(std::unique_ptr<TimedFactor> factor) {
+  OPTINAV_CHECK(factor != nullptr);
+  timed_factors_.push_back(std::move(factor));
+}
+
+SlidingWindowBackend::State* SlidingWindowBackend::AnchorFor(int64_t t_ns,
+                                                             ImuPreintegration* anchor_to_t) const {
+  for (size_t k = states_.size(); k-- > 0;) {
+    const State& s = *states_[k];
+    if (s.t_ns > t_ns) continue;
+    const ImuBias bias = s.Bias();
+    if (s.t_ns == t_ns) {
+      *anchor_to_t = ImuPreintegration(bias, options_.imu_noise);
+      return states_[k].get();
+    }
+    if (k + 1 == states_.size()) return nullptr;  // after the newest state: not yet usable
+    if (!options_.use_imu) {
+      *anchor_to_t = ImuPreintegration(bias, options_.imu_noise);
+    } else {
+      *anchor_to_t = states_[k + 1]->preintegration.Prefix((t_ns - s.t_ns) * 1e-9);
+    }
+    return states_[k].get();
+  }
+  return nullptr;
+}
+
+void SlidingWindowBackend::DropNewestIfNotKeyframe(ImuPreintegration* next) {
+  if (states_.size() < 2 || states_.back()->keyframe) return;
+  State& newest = *states_.back();
+  if (options_.use_imu && newest.has_preintegration) {
+    ImuPreintegration merged = newest.preintegration;
+    merged.Append(*next);
+    *next = std::move(merged);
+  }
+  for (const auto& [id, obs] : newest.observations) {
+    auto it = landmarks_.find(id);
+    if (it != landmarks_.end() && --it->second->num_states <= 0) landmarks_.erase(it);
+  }
+  states_.pop_back();
+}
+
+StateEstimate SlidingWindowBackend::AddFrame(int64_t t_ns, const ImuPreintegration& preintegration,
+                                             const std::vector<StereoObservation>& observations,
+                                             bool keyframe) {
+  OPTINAV_CHECK(initialized());
+  OPTINAV_CHECK(t_ns > states_.back()->t_ns);
+  ImuPreintegration pre = preintegration;
+  DropNewestIfNotKeyframe(&pre);
+  const State& last = *states_.back();
+  auto state = std::make_unique<State>();
+  state->t_ns = t_ns;
+  state->keyframe = keyframe;
+  if (options_.use_imu) {
+    pre.Reintegrate(last.Bias());
+    const NavState predicted = pre.Predict(last.Nav(), last.Bias(), options_.gravity);
+    state->SetPose({predicted.world_from_body_rotation, predicted.position});
+    state->SetSpeedBias(predicted.velocity, last.Bias());
+    state->preintegration = std::move(pre);
+    state->has_preintegration = true;
+  } else {
+    // Constant velocity: the last relative motion, scaled to this interval.
+    Rigid3d predicted = last.WorldFromBody();
+    if (states_.size() >= 2) {
+      const State& before = *states_[states_.size() - 2];
+      const Rigid3d delta = before.WorldFromBody().Inverse() * last.WorldFromBody();
+      const double ratio =
+          static_cast<double>(t_ns - last.t_ns) / static_cast<double>(last.t_ns - before.t_ns);
+      Vector6d xi = LogSE3(delta) * std::clamp(ratio, 0.0, 3.0);
+      predicted = last.WorldFromBody() * ExpSE3(xi);
+    }
+    state->SetPose(predicted);
+  }
+  states_.push_back(std::move(state));
+  State* added = states_.back().get();
+  AddObservations(added, observations);
+  TriangulateNew(added);
+  if (keyframe || states_.size() < 3) {
+    Optimize();
+  } else {
+    OptimizeNewest();
+  }
+  RemoveOutliers();
+  TriangulateNew(added);
+  if (options_.use_imu) RelinearizeBiases();
+  int keyframes = 0;
+  for (const auto& s : states_) keyframes += s->keyframe ? 1 : 0;
+  if (keyframes > options_.window_keyframes) MarginalizeOldest();
+
+  stats_.num_states = static_cast<int>(states_.size());
+  stats_.num_keyframes = std::min(keyframes, options_.window_keyframes);
+  int constrained = 0;
+  for (const auto& [id, obs] : added->observations) {
+    const auto it = landmarks_.find(id);
+    if (it != landmarks_.end() && it->second->initialized && it->second->num_states >= 2)
+      ++constrained;
+  }
+  stats_.newest_constrained_landmarks = constrained;
+  return Newest();
+}
+
+StateEstimate SlidingWindowBackend::Newest() const {
+  OPTINAV_CHECK(initialized());
+  return states_.back()->Estimate();
+}
+
+std::vector<std::unique_ptr<ResidualSpec>> SlidingWindowBackend::BuildResiduals(
+    const std::function<bool(const State*)>& state_filter,
+    const std::function<bool(const Landmark*)>& landmark_filter) const {
+  std::vector<std::unique_ptr<ResidualSpec>> specs;
+  const double focal = rig_.focal_px;
+  for (const auto& state : states_) {
+    if (!state_filter(state.get())) continue;
+    for (const auto& [id, obs] : state->observations) {
+      Landmark* landmark = landmarks_.at(id).get();
+      if (!landmark->initialized || landmark->num_states < 2 || !landmark_filter(landmark))
+        continue;
+      auto add = [&](const Rigid3d& cam_from_body, const Eigen::Vector2d& observed) {
+        auto spec = std::make_unique<ResidualSpec>();
+        spec->cost.reset(
+            CreateReprojectionFactor(cam_from_body, observed, focal, options_.pixel_sigma));
+        spec->loss = huber_.get();
+        spec->blocks = {state->pose, landmark->position};
+        specs.push_back(std::move(spec));
+      };
+      add(rig_.cam0_from_body, obs.left);
+      if (obs.right) add(rig_.cam1_from_body, *obs.right);
+    }
+  }
+  return specs;
+}
+
+const ceres::Manifold* SlidingWindowBackend::ManifoldOf(const double* block) const {
+  for (const auto& s : states_)
+    if (block == s->pose) return PoseManifold();
+  return nullptr;
+}
+
+int SlidingWindowBackend::SizeOf(const double* block) const {
+  for (const auto& s : states_) {
+    if (block == s->pose) return kPoseSize;
+    if (block == s->speed_bias) return kSpeedBiasSize;
+  }
+  return kPointSize;
+}
+
+namespace {
+
+// Problems own their cost functions; losses and manifolds are shared and outlive them.
+ceres::Problem::Options ProblemOptions() {
+  ceres::Problem::Options o;
+  o.cost_function_ownership = ceres::TAKE_OWNERSHIP;
+  o.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  o.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  return o;
+}
+
+// Single-threaded (deterministic) Levenberg-Marquardt within the per-frame budget.
+ceres::Solver::Options SolverOptions(const BackendOptions& options) {
+  ceres::Solver::Options o;
+  o.max_num_iterations = options.max_iterations;
+  o.max_solver_time_in_seconds = options.max_solver_time_s;
+  o.num_threads = 1;
+  o.logging_type = ceres::SILENT;
+  o.minimizer_progress_to_stdout = false;
+  return o;
+}
+
+}  // namespace
+
+void SlidingWindowBackend::RecordSummary(const ceres::Solver::Summary& summary) {
+  stats_.solver_iterations = static_cast<int>(summary.iterations.size());
+  stats_.initial_cost = summary.initial_cost;
+  stats_.final_cost = summary.final_cost;
+  stats_.solver_usable = summary.IsSolutionUsable();
+}
+
+void SlidingWindowBackend::OptimizeNewest() {
+  // Between keyframes: only the newest state moves, against the previous state and the
+  // landmarks held fixed (motion-only tracking; the full window is solved at keyframes).
+  ceres::Problem problem(ProblemOptions());
+  State& newest = *states_.back();
+  State& previous = *states_[states_.size() - 2];
+  for (State* s : {&previous, &newest}) {
+    problem.AddParameterBlock(s->pose, kPoseSize, const_cast<ceres::Manifold*>(PoseManifold()));
+    if (options_.use_imu) problem.AddParameterBlock(s->speed_bias, kSpeedBiasSize);
+  }
+  problem.SetParameterBlockConstant(previous.pose);
+  if (options_.use_imu) {
+    problem.SetParameterBlockConstant(previous.speed_bias);
+    if (newest.has_preintegration && newest.preintegration.dt_s() > 0)
+      problem.AddResidualBlock(CreateImuFactor(newest.preintegration, options_.gravity), nullptr,
+                               previous.pose, previous.speed_bias, newest.pose, newest.speed_bias);
+  }
+  int num_observations = 0;
+  for (auto& spec : BuildResiduals([&](const State* s) { return s == &newest; },
+                                   [](const Landmark*) { return true; })) {
+    if (!problem.HasParameterBlock(spec->blocks[1])) {
+      problem.AddParameterBlock(spec->blocks[1], kPointSize);
+      problem.SetParameterBlockConstant(spec->blocks[1]);
+    }
+    problem.AddResidualBlock(spec->cost.release(), const_cast<ceres::LossFunction*>(spec->loss),
+                             spec->blocks);
+    ++num_observations;
+  }
+  ceres::Solver::Options solver_options = SolverOptions(options_);
+  solver_options.linear_solver_type = ceres::DENSE_QR;
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver_options, &problem, &summary);
+  stats_.num_observations = num_observations;
+  RecordSummary(summary);
+  Eigen::Map<Eigen::Quaterniond>(newest.pose + 3).normalize();
+}
+
+void SlidingWindowBackend::Optimize() {
+  ceres::Problem problem(ProblemOptions());
+  // Landmarks are added first and no explicit ordering is given: Ceres then picks the
+  // elimination set greedily in insertion order (stable, independent of addresses: a user
+  // ordering is a set of pointers, whose order would make runs differ), which selects exactly
+  // the landmarks.
+  auto reprojection =
+      BuildResiduals([](const State*) { return true; }, [](const Landmark*) { return true; });
+  int num_landmarks = 0, num_observations = 0;
+  for (const auto& spec : reprojection) {
+    if (!problem.HasParameterBlock(spec->blocks[1])) {
+      problem.AddParameterBlock(spec->blocks[1], kPointSize);
+      ++num_landmarks;
+    }
+  }
+  for (const auto& s : states_) {
+    problem.AddParameterBlock(s->pose, kPoseSize, const_cast<ceres::Manifold*>(PoseManifold()));
+    if (options_.use_imu) problem.AddParameterBlock(s->speed_bias, kSpeedBiasSize);
+  }
+  if (options_.use_imu) {
+    for (size_t k = 1; k < states_.size(); ++k) {
+      State& a = *states_[k - 1];
+      State& b = *states_[k];
+      if (!b.has_preintegration || b.preintegration.dt_s() <= 0) continue;
+      problem.AddResidualBlock(CreateImuFactor(b.preintegration, options_.gravity), nullptr, a.pose,
+                               a.speed_bias, b.pose, b.speed_bias);
+    }
+  }
+  for (auto& spec : reprojection) {
+    problem.AddResidualBlock(spec->cost.release(), const_cast<ceres::LossFunction*>(spec->loss),
+                             spec->blocks);
+    ++num_observations;
+  }
+  if (!prior_.empty()) {
+    std::vector<double*> blocks;
+    for (const auto& b : prior_.blocks) blocks.push_back(b.values);
+    problem.AddResidualBlock(prior_.CreateCostFunction(), nullptr, blocks);
+  }
+  for (const auto& factor : timed_factors_) {
+    ImuPreintegration anchor_to_t;
+    State* anchor = AnchorFor(factor->t_ns(), &anchor_to_t);
+    if (!anchor) continue;
+    ceres::CostFunction* cost = factor->Create(anchor_to_t, options_.gravity, options_.use_imu);
+    auto* loss = const_cast<ceres::LossFunction*>(factor->loss());
+    if (options_.use_imu) {
+      problem.AddResidualBlock(cost, loss, anchor->pose, anchor->speed_bias);
+    } else {
+      problem.AddResidualBlock(cost, loss, anchor->pose);
+    }
+  }
+
+  ceres::Solver::Options solver_options = SolverOptions(options_);
+  if (num_landmarks > 0) {
+    solver_options.linear_solver_type = ceres::DENSE_SCHUR;
+  } else {
+    solver_options.linear_solver_type = ceres::DENSE_QR;
+  }
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver_options, &problem, &summary);
+  stats_.num_landmarks = num_landmarks;
+  stats_.num_observations = num_observations;
+  RecordSummary(summary);
+  // Keep quaternions normalised (the manifold keeps them on the sphere up to rounding).
+  for (auto& s : states_) {
+    Eigen::Map<Eigen::Quaterniond> q(s->pose + 3);
+    q.normalize();
+  }
+}
+
+void SlidingWindowBackend::RemoveOutliers() {
+  stats_.num_outliers_removed = 0;
+  std::set<uint64_t> bad;
+  const double limit = options_.outlier_pixels;
+  for (const auto& state : states_) {
+    const Rigid3d body_from_world = state->WorldFromBody().Inverse();
+    for (const auto& [id, obs] : state->observations) {
+      const Landmark& landmark = *landmarks_.at(id);
+      if (!landmark.initialized) continue;
+      const Eigen::Vector3d p_world(landmark.position[0], landmark.position[1],
+                                    landmark.position[2]);
+      const Eigen::Vector3d p_body = body_from_world * p_world;
+      auto error_px = [&](const Rigid3d& cam_from_body, const Eigen::Vector2d& observed) {
+        const Eigen::Vector3d p = cam_from_body * p_body;
+        if (p.z() < options_.min_depth_m) return 1e9;
+        return rig_.focal_px * (p.head<2>() / p.z() - observed).norm();
+      };
+      if (error_px(rig_.cam0_from_body, obs.left) > limit ||
+          (obs.right && error_px(rig_.cam1_from_body, *obs.right) > limit))
+        bad.insert(id);
+    }
+  }
+  for (uint64_t id : bad) {
+    for (auto& state : states_) state->observations.erase(id);
+    landmarks_.erase(id);
+    rejected_tracks_.insert(id);
+  }
+  stats_.num_outliers_removed = static_cast<int>(bad.size());
+}
+
+void SlidingWindowBackend::RelinearizeBiases() {
+  for (size_t k = 1; k < states_.size(); ++k) {
+    State& b = *states_[k];
+    if (!b.has_preintegration) continue;
+    const ImuBias bias = states_[k - 1]->Bias();
+    const ImuBias& lin = b.preintegration.linearization_bias();
+    if ((bias.gyro - lin.gyro).norm() > options_.relinearize_gyro_bias ||
+        (bias.accel - lin.accel).norm() > options_.relinearize_accel_bias)
+      b.preintegration.Reintegrate(bias);
+  }
+}
+
+void SlidingWindowBackend::MarginalizeOldest() {
+  OPTINAV_CHECK(states_.size() >= 3);
+  State* oldest = states_.front().get();
+  const State* newest = states_.back().get();
+  // Landmarks of the oldest state that are no longer tracked go with it.
+  // (In id order: the block order of the marginalisation must not depend on addresses.)
+  std::set<const Landmark*> leaving;
+  std::vector<uint64_t> leaving_ids;
+  std::vector<double*> leaving_blocks;
+  for (const auto& [id, obs] : oldest->observations) {
+    Landmark* l = landmarks_.at(id).get();
+    if (l->initialized && l->num_states >= 2 && !newest->observations.count(id)) {
+      leaving.insert(l);
+      leaving_ids.push_back(id);
+      leaving_blocks.push_back(l->position);
+    }
+  }
+  std::vector<std::unique_ptr<ResidualSpec>> owned = BuildResiduals(
+      [](const State*) { return true; }, [&](const Landmark* l) { return leaving.count(l) > 0; });
+  if (options_.use_imu && states_[1]->has_preintegration) {
+    auto spec = std::make_unique<ResidualSpec>();
+    spec->cost.reset(CreateImuFactor(states_[1]->preintegration, options_.gravity));
+    spec->blocks = {oldest->pose, oldest->speed_bias, states_[1]->pose, states_[1]->speed_bias};
+    owned.push_back(std::move(spec));
+  }
+  if (!prior_.empty()) {
+    auto spec = std::make_unique<ResidualSpec>();
+    spec->cost.reset(prior_.CreateCostFunction());
+    for (const auto& b : prior_.blocks) spec->blocks.push_back(b.values);
+    owned.push_back(std::move(spec));
+  }
+  const int64_t next_t = states_[1]->t_ns;
+  for (const auto& factor : timed_factors_) {
+    if (factor->t_ns() >= next_t) continue;
+    ImuPreintegration anchor_to_t;
+    State* anchor = AnchorFor(factor->t_ns(), &anchor_to_t);
+    if (anchor != oldest) continue;
+    auto spec = std::make_unique<ResidualSpec>();
+    spec->cost.reset(factor->Create(anchor_to_t, options_.gravity, options_.use_imu));
+    spec->loss = factor->loss();
+    spec->blocks = {oldest->pose};
+    if (options_.use_imu) spec->blocks.push_back(oldest->speed_bias);
+    owned.push_back(std::move(spec));
+  }
+  std::vector<double*> marginalize{oldest->pose};
+  if (options_.use_imu) marginalize.push_back(oldest->speed_bias);
+  marginalize.insert(marginalize.end(), leaving_blocks.begin(), leaving_blocks.end());
+  std::vector<const ResidualSpec*> specs;
+  for (const auto& s : owned) specs.push_back(s.get());
+  prior_ = Marginalize(
+      specs, marginalize, [&](const double* b) { return ManifoldOf(b); },
+      [&](const double* b) { return SizeOf(b); });
+
+  // Remove what left the window.
+  for (uint64_t id : leaving_ids) {
+    for (auto& state : states_) state->observations.erase(id);
+    landmarks_.erase(id);
+  }
+  for (const auto& [id, obs] : oldest->observations) {
+    auto it = landmarks_.find(id);
+    if (it != landmarks_.end() && --it->second->num_states <= 0) landmarks_.erase(it);
+  }
+  std::erase_if(timed_factors_, [&](const auto& f) { return f->t_ns() < next_t; });
+  states_.pop_front();
+  states_.front()->has_preintegration = false;
+}
+
+}  // namespace optinav::vio

@@ -1,0 +1,174 @@
+// The Ceres sliding-window backend.
+//
+// The window holds the last `window_keyframes` keyframe states plus the newest frame. Each state
+// has a pose block (world_from_body) and, with IMU, a speed-bias block (velocity, gyro bias,
+// accel bias). Factors:
+//   - IMU preintegration + bias random walk between consecutive states (factors.h);
+//   - stereo reprojection of world landmarks (left and right camera), Huber loss;
+//   - a linear prior: first the initial-state prior, then the marginalisation prior;
+//   - extra timed factors (TimedFactor): the extension point for absolute measurements at
+//     arbitrary timestamps (GNSS positions, map fixes), attached to the state at or before their
+//     time with the IMU preintegrated from that state to the measurement time.
+// The whole window is optimised when the new frame is a keyframe; otherwise only the new state
+// moves (motion-only, previous state and landmarks fixed), which keeps the per-frame cost low.
+// When a new frame arrives and the previous newest frame was not a keyframe, that frame is
+// dropped (its IMU interval is merged into the next one, its observations discarded). When the
+// window holds more than `window_keyframes` keyframes, the oldest is marginalised with a Schur
+// complement: its IMU factor, the prior, its timed factors and every observation of the landmarks
+// that are no longer tracked become a linear prior on the remaining states; its observations of
+// still-tracked landmarks are dropped (information discarded, never double counted).
+// Without IMU (stereo-only mode) states have only poses and the new pose is predicted with a
+// constant-velocity model.
+#pragma once
+
+#include <cstdint>
+#include <deque>
+#include <map>
+#include <memory>
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "optinav/geometry/lie.h"
+#include "optinav/vio/factors.h"
+#include "optinav/vio/imu_preintegration.h"
+
+namespace optinav::vio {
+
+struct BackendOptions {
+  bool use_imu = true;          // false: stereo-only (no speed-bias blocks, no IMU factors)
+  int window_keyframes = 8;     // keyframes kept in the window (>= 2)
+  double pixel_sigma = 1.0;     // reprojection noise, pixels
+  double huber_pixels = 1.5;    // Huber threshold on the whitened residual, pixels
+  double outlier_pixels = 4.0;  // observations above this after a solve are removed
+  double min_depth_m = 0.1;     // landmarks closer than this to a camera are rejected
+  double max_depth_m = 200.0;   // stereo triangulation beyond this is not trusted
+  int max_iterations = 8;       // Levenberg-Marquardt iterations per frame
+  double max_solver_time_s = 0.2;
+  // Relinearise preintegration when the bias estimate moved more than this from the
+  // linearisation bias.
+  double relinearize_gyro_bias = 0.005;  // rad / s
+  double relinearize_accel_bias = 0.05;  // m / s^2
+  // Initial prior sigmas (the gauge: position and yaw are unobservable).
+  double prior_position_sigma_m = 1e-3;
+  double prior_yaw_sigma_rad = 1e-3;
+  double prior_tilt_sigma_rad = 0.02;
+  double prior_velocity_sigma_m_s = 0.1;
+  double prior_gyro_bias_sigma = 0.01;
+  double prior_accel_bias_sigma = 0.2;
+  ImuNoise imu_noise;
+  Eigen::Vector3d gravity = GravityInWorld();
+
+  // Empty when valid, else a message naming the field and value.
+  std::string Check() const;
+};
+
+// The rig as the backend needs it: extrinsics and a focal length to express residuals in pixels.
+struct RigExtrinsics {
+  Rigid3d cam0_from_body, cam1_from_body;
+  double focal_px = 450.0;
+};
+
+// A feature of a frame: undistorted normalised coordinates in the left (and right) camera.
+struct StereoObservation {
+  uint64_t track_id = 0;
+  Eigen::Vector2d left = Eigen::Vector2d::Zero();
+  std::optional<Eigen::Vector2d> right;
+};
+
+struct StateEstimate {
+  int64_t t_ns = 0;
+  Rigid3d world_from_body;
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();
+  ImuBias bias;
+};
+
+// A factor on one state at an arbitrary time (issue 6 plugs GNSS positions in here).
+class TimedFactor {
+ public:
+  virtual ~TimedFactor() = default;
+  virtual int64_t t_ns() const = 0;
+  // A cost over the blocks (pose, speed_bias) of the anchor state (the newest state at or before
+  // t_ns). `anchor_to_t` preintegrates the IMU from the anchor to t_ns (zero duration when they
+  // coincide, or without IMU). In stereo-only mode the speed-bias block is absent: the cost must
+  // then take the pose block only (uses_speed_bias(false)).
+  virtual ceres::CostFunction* Create(const ImuPreintegration& anchor_to_t,
+                                      const Eigen::Vector3d& gravity,
+                                      bool uses_speed_bias) const = 0;
+  // Robust loss (owned by the factor), or nullptr.
+  virtual const ceres::LossFunction* loss() const { return nullptr; }
+};
+
+struct BackendStats {
+  int num_states = 0, num_keyframes = 0, num_landmarks = 0, num_observations = 0;
+  int num_outliers_removed = 0;
+  int solver_iterations = 0;
+  double initial_cost = 0, final_cost = 0;
+  bool solver_usable = false;
+  int newest_constrained_landmarks = 0;  // landmarks seen by the newest frame and another state
+};
+
+class SlidingWindowBackend {
+ public:
+  SlidingWindowBackend(const BackendOptions& options, const RigExtrinsics& rig);
+  ~SlidingWindowBackend();
+
+  // Starts the window with the first state; the prior fixes the gauge around it. Negative
+  // sigmas take the options' prior_tilt_sigma_rad / prior_velocity_sigma_m_s /
+  // prior_accel_bias_sigma.
+  void Initialize(const StateEstimate& state, const std::vector<StereoObservation>& observations,
+                  double tilt_sigma_rad = -1, double velocity_sigma_m_s = -1,
+                  double accel_bias_sigma = -1);
+  bool initialized() const { return !states_.empty(); }
+  void Reset();
+
+  // Adds a frame. `preintegration` covers the previous frame's time to t_ns (ignored without
+  // IMU). Optimises the window and returns the frame's estimate.
+  StateEstimate AddFrame(int64_t t_ns, const ImuPreintegration& preintegration,
+                         const std::vector<StereoObservation>& observations, bool keyframe);
+
+  // The extension point: the factor stays until its anchor state is marginalised (then it is
+  // part of the marginalisation prior) or dropped with a non-keyframe (then it moves to the
+  // previous state).
+  void AddTimedFactor(std::unique_ptr<TimedFactor> factor);
+
+  StateEstimate Newest() const;
+  const BackendStats& stats() const { return stats_; }
+  // Track ids the backend rejected as outliers (the frontend may stop tracking them).
+  const std::set<uint64_t>& rejected_tracks() const { return rejected_tracks_; }
+
+ private:
+  struct State;
+  struct Landmark;
+
+  void DropNewestIfNotKeyframe(ImuPreintegration* next_preintegration);
+  void AddObservations(State* state, const std::vector<StereoObservation>& observations);
+  void TriangulateNew(State* state);
+  std::vector<std::unique_ptr<ResidualSpec>> BuildResiduals(
+      const std::function<bool(const State*)>& state_filter,
+      const std::function<bool(const Landmark*)>& landmark_filter) const;
+  void Optimize();
+  void OptimizeNewest();
+  void RecordSummary(const ceres::Solver::Summary& summary);
+  void RemoveOutliers();
+  void MarginalizeOldest();
+  void RelinearizeBiases();
+  void SetInitialPrior(State* state, double tilt_sigma_rad, double velocity_sigma_m_s,
+                       double accel_bias_sigma);
+  State* AnchorFor(int64_t t_ns, ImuPreintegration* anchor_to_t) const;
+  const ceres::Manifold* ManifoldOf(const double* block) const;
+  int SizeOf(const double* block) const;
+
+  BackendOptions options_;
+  RigExtrinsics rig_;
+  std::unique_ptr<ceres::LossFunction> huber_;
+  std::deque<std::unique_ptr<State>> states_;
+  std::map<uint64_t, std::unique_ptr<Landmark>> landmarks_;
+  std::vector<std::unique_ptr<TimedFactor>> timed_factors_;
+  LinearPrior prior_;
+  std::set<uint64_t> rejected_tracks_;
+  BackendStats stats_;
+};
+
+}  // namespace optinav::vio

@@ -1,0 +1,395 @@
+#include "optinav/vio/estimator.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <variant>
+
+#include <fmt/format.h>
+
+#include "optinav/util/config.h"
+#include "optinav/util/error.h"
+#include "optinav/util/logging.h"
+
+namespace optinav::vio {
+
+std::optional<VioMode> ParseVioMode(const std::string& name) {
+  if (name == "stereo-imu") return VioMode::kStereoImu;
+  if (name == "stereo") return VioMode::kStereo;
+  return std::nullopt;
+}
+
+std::string VioModeName(VioMode mode) {
+  return mode == VioMode::kStereoImu ? "stereo-imu" : "stereo";
+}
+
+std::string VioOptions::Check() const {
+  if (std::string e = frontend.Check(); !e.empty()) return "frontend." + e;
+  if (std::string e = backend.Check(); !e.empty()) return "backend." + e;
+  if (!(init_window_s > 0)) return "init_window_s must be > 0";
+  if (!(still_max_gyro_std > 0) || !(still_max_accel_std > 0))
+    return "still_max_gyro_std and still_max_accel_std must be > 0";
+  if (min_init_stereo_features < 3) return "min_init_stereo_features must be >= 3";
+  if (!(motion_init_tilt_sigma_rad > 0) || !(motion_init_velocity_sigma_m_s > 0) ||
+      !(motion_init_accel_bias_sigma > 0))
+    return "motion_init sigmas must be > 0";
+  if (!(max_frame_gap_s > 0) || !(max_imu_gap_s > 0)) return "max gaps must be > 0";
+  if (min_tracked_landmarks < 0) return "min_tracked_landmarks must be >= 0";
+  if (!(max_weak_tracking_s >= 0)) return "max_weak_tracking_s must be >= 0";
+  if (!(max_speed_m_s > 0) || !(max_gyro_bias > 0) || !(max_accel_bias > 0))
+    return "divergence limits must be > 0";
+  return "";
+}
+
+VioOptions LoadVioOptions(const std::string& path) {
+  const YamlFile file = LoadYamlFile(path);
+  VioOptions o;
+  const YAML::Node& root = file.root;
+  if (!root.IsMap()) throw Error("expected a map of options", {.file = path});
+  // Every key of a section and the field it sets; any other key is an error (a typo must not
+  // pass silently).
+  using Field = std::variant<int*, double*>;
+  using Section = std::vector<std::pair<const char*, Field>>;
+  FrontendOptions& f = o.frontend;
+  BackendOptions& b = o.backend;
+  const std::map<std::string, Section> sections = {
+      {"frontend",
+       {{"max_features", &f.max_features},
+        {"grid_cols", &f.grid_cols},
+        {"grid_rows", &f.grid_rows},
+        {"min_distance_px", &f.min_distance_px},
+        {"quality_level", &f.quality_level},
+        {"klt_window_px", &f.klt_window_px},
+        {"stereo_window_px", &f.stereo_window_px},
+        {"klt_pyramid_levels", &f.klt_pyramid_levels},
+        {"klt_max_iterations", &f.klt_max_iterations},
+        {"forward_backward_px", &f.forward_backward_px},
+        {"ransac_px", &f.ransac_px},
+        {"epipolar_px", &f.epipolar_px},
+        {"border_px", &f.border_px},
+        {"keyframe_max_interval_s", &f.keyframe_max_interval_s},
+        {"keyframe_min_tracked_ratio", &f.keyframe_min_tracked_ratio},
+        {"keyframe_min_parallax_px", &f.keyframe_min_parallax_px}}},
+      {"backend",
+       {{"window_keyframes", &b.window_keyframes},
+        {"pixel_sigma", &b.pixel_sigma},
+        {"huber_pixels", &b.huber_pixels},
+        {"outlier_pixels", &b.outlier_pixels},
+        {"min_depth_m", &b.min_depth_m},
+        {"max_depth_m", &b.max_depth_m},
+        {"max_iterations", &b.max_iterations},
+        {"max_solver_time_s", &b.max_solver_time_s},
+        {"relinearize_gyro_bias", &b.relinearize_gyro_bias},
+        {"relinearize_accel_bias", &b.relinearize_accel_bias},
+        {"prior_position_sigma_m", &b.prior_position_sigma_m},
+        {"prior_yaw_sigma_rad", &b.prior_yaw_sigma_rad},
+        {"prior_tilt_sigma_rad", &b.prior_tilt_sigma_rad},
+        {"prior_velocity_sigma_m_s", &b.prior_velocity_sigma_m_s},
+        {"prior_gyro_bias_sigma", &b.prior_gyro_bias_sigma},
+        {"prior_accel_bias_sigma", &b.prior_accel_bias_sigma}}},
+      {"initialization",
+       {{"init_window_s", &o.init_window_s},
+        {"still_max_gyro_std", &o.still_max_gyro_std},
+        {"still_max_accel_std", &o.still_max_accel_std},
+        {"min_init_stereo_features", &o.min_init_stereo_features},
+        {"motion_init_tilt_sigma_rad", &o.motion_init_tilt_sigma_rad},
+        {"motion_init_velocity_sigma_m_s", &o.motion_init_velocity_sigma_m_s},
+        {"motion_init_accel_bias_sigma", &o.motion_init_accel_bias_sigma}}},
+      {"failure",
+       {{"max_frame_gap_s", &o.max_frame_gap_s},
+        {"max_imu_gap_s", &o.max_imu_gap_s},
+        {"min_tracked_landmarks", &o.min_tracked_landmarks},
+        {"max_weak_tracking_s", &o.max_weak_tracking_s},
+        {"max_speed_m_s", &o.max_speed_m_s},
+        {"max_gyro_bias", &o.max_gyro_bias},
+        {"max_accel_bias", &o.max_accel_bias}}},
+  };
+  for (const auto& kv : root) {
+    const std::string key = kv.first.as<std::string>();
+    if (key == "mode") {
+      const std::string mode = YamlGet<std::string>(file, root, "mode");
+      const auto parsed = ParseVioMode(mode);
+      if (!parsed)
+        throw Error("expected stereo-imu or stereo, got '" + mode + "'",
+                    internal::YamlContext(file, kv.second, "mode"));
+      o.mode = *parsed;
+      continue;
+    }
+    const auto section = sections.find(key);
+    if (section == sections.end())
+      throw Error("unknown key", internal::YamlContext(file, kv.first, key));
+    const YAML::Node& node = kv.second;
+    if (!node.IsMap())
+      throw Error("expected a map of options", internal::YamlContext(file, node, key));
+    for (const auto& entry : node) {
+      const std::string name = entry.first.as<std::string>();
+      const auto field = std::find_if(section->second.begin(), section->second.end(),
+                                      [&](const auto& p) { return name == p.first; });
+      if (field == section->second.end())
+        throw Error("unknown key", internal::YamlContext(file, entry.first, key + "." + name));
+      std::visit(
+          [&](auto* target) {
+            *target = YamlGet<std::decay_t<decltype(*target)>>(file, node, name);
+          },
+          field->second);
+    }
+  }
+  if (const std::string e = o.Check(); !e.empty()) throw Error(e, {.file = path});
+  return o;
+}
+
+namespace {
+
+RigExtrinsics MakeExtrinsics(const camera::StereoRig& rig, const Rigid3d& body_from_cam0) {
+  RigExtrinsics e;
+  e.cam0_from_body = body_from_cam0.Inverse();
+  e.cam1_from_body = rig.right_from_left * e.cam0_from_body;
+  e.focal_px = rig.left.fx;
+  return e;
+}
+
+BackendOptions WithMode(BackendOptions b, const VioOptions& o, const ImuNoise& noise) {
+  b.use_imu = o.mode == VioMode::kStereoImu;
+  b.imu_noise = noise;
+  return b;
+}
+
+double Yaw(const Eigen::Quaterniond& q) {
+  const Eigen::Matrix3d r = q.toRotationMatrix();
+  return std::atan2(r(1, 0), r(0, 0));
+}
+
+}  // namespace
+
+VioEstimator::VioEstimator(const camera::StereoRig& rig, const Rigid3d& body_from_cam0,
+                           const ImuNoise& imu_noise, const VioOptions& options)
+    : rig_(rig),
+      body_from_cam0_(body_from_cam0),
+      imu_noise_(imu_noise),
+      options_(options),
+      frontend_(rig, options.frontend),
+      backend_(WithMode(options.backend, options, imu_noise), MakeExtrinsics(rig, body_from_cam0)) {
+  const std::string problem = options_.Check();
+  OPTINAV_CHECK_MSG(problem.empty(), problem);
+  frontend_.set_timing(&timing_);
+}
+
+VioEstimator::~VioEstimator() = default;
+
+void VioEstimator::AddImu(const TimedImuSample& s) {
+  if (!s.gyro.allFinite() || !s.accel.allFinite()) {
+    spdlog::warn("vio: dropping non-finite IMU sample at {} ns", s.t_ns);
+    return;
+  }
+  if (!imu_.empty() && s.t_ns <= imu_.back().t_ns) {
+    spdlog::warn("vio: dropping IMU sample at {} ns (not after {} ns)", s.t_ns, imu_.back().t_ns);
+    return;
+  }
+  imu_.push_back(s);
+  // Keep a few seconds: the initialisation window and the interval since the last frame.
+  const int64_t keep_ns = static_cast<int64_t>((options_.init_window_s + 3.0) * 1e9);
+  while (imu_.size() > 2 && imu_.front().t_ns < s.t_ns - keep_ns) imu_.pop_front();
+}
+
+std::optional<std::string> VioEstimator::ImuProblem(int64_t t0_ns, int64_t t1_ns) const {
+  const int64_t max_gap = static_cast<int64_t>(options_.max_imu_gap_s * 1e9);
+  if (imu_.empty()) return "IMU gap: no IMU data (IMU stopped)";
+  if (imu_.back().t_ns < t1_ns - max_gap)
+    return fmt::format("IMU gap: no IMU sample in the {:.3f} s before the frame (IMU stopped?)",
+                       (t1_ns - imu_.back().t_ns) * 1e-9);
+  if (imu_.front().t_ns > t0_ns + max_gap) return "IMU gap: no IMU data since the previous frame";
+  int64_t prev = t0_ns;
+  for (const TimedImuSample& s : imu_) {
+    if (s.t_ns <= t0_ns) {
+      prev = s.t_ns;
+      continue;
+    }
+    if (s.t_ns - std::max(prev, t0_ns) > max_gap)
+      return fmt::format("IMU gap of {:.3f} s", (s.t_ns - std::max(prev, t0_ns)) * 1e-9);
+    prev = s.t_ns;
+    if (s.t_ns >= t1_ns) break;
+  }
+  return std::nullopt;
+}
+
+ImuPreintegration VioEstimator::Preintegrate(int64_t t0_ns, int64_t t1_ns,
+                                             const ImuBias& bias) const {
+  std::vector<TimedImuSample> window;
+  for (size_t i = 0; i < imu_.size(); ++i) {
+    const bool next_after_t0 = i + 1 < imu_.size() && imu_[i + 1].t_ns > t0_ns;
+    if ((imu_[i].t_ns >= t0_ns || next_after_t0) && imu_[i].t_ns <= t1_ns)
+      window.push_back(imu_[i]);
+    if (imu_[i].t_ns >= t1_ns) {
+      window.push_back(imu_[i]);
+      break;
+    }
+  }
+  ImuPreintegration pre(bias, imu_noise_);
+  for (const ImuMeasurement& m : ImuMeasurementsBetween(window, t0_ns, t1_ns))
+    pre.Integrate(m.gyro, m.accel, m.dt_s);
+  return pre;
+}
+
+void VioEstimator::Lose(int64_t t_ns, const std::string& reason) {
+  if (!lost_since_ns_) {
+    lost_since_ns_ = last_good_ ? last_good_->t_ns : t_ns;
+    lost_reason_ = reason;
+  }
+  spdlog::warn("vio: tracking lost at {:.3f} s: {}", t_ns * 1e-9, reason);
+  backend_.Reset();
+  weak_since_s_ = -1;
+}
+
+void VioEstimator::Finish() {
+  if (lost_since_ns_) {
+    lost_.push_back({*lost_since_ns_, prev_frame_ns_.value_or(*lost_since_ns_),
+                     *lost_reason_ + " (not recovered before the end)"});
+    lost_since_ns_.reset();
+  }
+}
+
+bool VioEstimator::TryInitialize(int64_t t_ns, const FrontendOutput& features) {
+  int stereo = 0;
+  for (const StereoObservation& o : features.observations) stereo += o.right ? 1 : 0;
+  if (stereo < options_.min_init_stereo_features) return false;
+  StateEstimate state;
+  state.t_ns = t_ns;
+  double tilt_sigma = -1, velocity_sigma = -1, accel_bias_sigma = -1;
+  if (options_.mode == VioMode::kStereoImu) {
+    const int64_t t0 = t_ns - static_cast<int64_t>(options_.init_window_s * 1e9);
+    std::vector<const TimedImuSample*> window;
+    for (const TimedImuSample& s : imu_)
+      if (s.t_ns >= t0 && s.t_ns <= t_ns) window.push_back(&s);
+    if (window.size() < 10 || window.front()->t_ns > t0 + (t_ns - t0) / 5) return false;
+    if (ImuProblem(window.front()->t_ns, t_ns)) return false;
+    Eigen::Vector3d mg = Eigen::Vector3d::Zero(), ma = Eigen::Vector3d::Zero();
+    for (const auto* s : window) mg += s->gyro, ma += s->accel;
+    mg /= window.size();
+    ma /= window.size();
+    // Stillness on 0.1 s block means: propeller vibration averages out, motion does not.
+    std::vector<Eigen::Vector3d> block_g, block_a;
+    const int64_t block_ns = 100'000'000;
+    for (size_t i = 0; i < window.size();) {
+      Eigen::Vector3d sg = Eigen::Vector3d::Zero(), sa = Eigen::Vector3d::Zero();
+      size_t j = i;
+      for (; j < window.size() && window[j]->t_ns < window[i]->t_ns + block_ns; ++j)
+        sg += window[j]->gyro, sa += window[j]->accel;
+      block_g.push_back(sg / (j - i));
+      block_a.push_back(sa / (j - i));
+      i = j;
+    }
+    double vg = 0, va = 0;
+    for (size_t k = 0; k < block_g.size(); ++k)
+      vg += (block_g[k] - mg).squaredNorm(), va += (block_a[k] - ma).squaredNorm();
+    const double std_g = std::sqrt(vg / block_g.size()), std_a = std::sqrt(va / block_a.size());
+    const bool still = std_g < options_.still_max_gyro_std && std_a < options_.still_max_accel_std;
+    // Attitude: the specific force points up in the world.
+    Eigen::Quaterniond world_from_body =
+        Eigen::Quaterniond::FromTwoVectors(ma.normalized(), Eigen::Vector3d::UnitZ());
+    const double target_yaw = last_good_ ? Yaw(last_good_->world_from_body.rotation) : 0.0;
+    world_from_body =
+        Eigen::AngleAxisd(target_yaw - Yaw(world_from_body), Eigen::Vector3d::UnitZ()) *
+        world_from_body;
+    state.world_from_body.rotation = world_from_body.normalized();
+    if (still) {
+      state.bias.gyro = mg;
+      state.bias.accel =
+          ma - state.world_from_body.rotation.conjugate() * -options_.backend.gravity;
+      last_init_kind_ = "static";
+    } else {
+      state.bias = last_good_ ? last_good_->bias : ImuBias{};
+      tilt_sigma = options_.motion_init_tilt_sigma_rad;
+      velocity_sigma = options_.motion_init_velocity_sigma_m_s;
+      accel_bias_sigma = options_.motion_init_accel_bias_sigma;
+      last_init_kind_ = "in-motion";
+    }
+    spdlog::info(
+        "vio: {} initialisation at {:.3f} s (gyro std {:.4f} rad/s, accel std {:.3f} "
+        "m/s^2, {} stereo features)",
+        last_init_kind_, t_ns * 1e-9, std_g, std_a, stereo);
+  } else {
+    if (last_good_) state.world_from_body = last_good_->world_from_body;
+    last_init_kind_ = "stereo";
+  }
+  if (last_good_) state.world_from_body.translation = last_good_->world_from_body.translation;
+  backend_.Initialize(state, features.observations, tilt_sigma, velocity_sigma, accel_bias_sigma);
+  ++initializations_;
+  if (lost_since_ns_) {
+    lost_.push_back({*lost_since_ns_, t_ns, *lost_reason_});
+    spdlog::warn("vio: lost from {:.3f} s to {:.3f} s ({})", *lost_since_ns_ * 1e-9, t_ns * 1e-9,
+                 *lost_reason_);
+    lost_since_ns_.reset();
+  }
+  return true;
+}
+
+std::optional<FrameEstimate> VioEstimator::ProcessFrame(int64_t t_ns, const cv::Mat& left,
+                                                        const cv::Mat& right) {
+  ScopedTimer total(timing_, "total");
+  if (prev_frame_ns_ && t_ns <= *prev_frame_ns_) {
+    spdlog::warn("vio: skipping frame at {} ns (not after the previous one)", t_ns);
+    return std::nullopt;
+  }
+  const bool use_imu = options_.mode == VioMode::kStereoImu;
+  std::optional<std::string> problem;
+  std::optional<Eigen::Quaterniond> cur_from_prev;
+  ImuPreintegration pre(ImuBias{}, imu_noise_);
+  if (prev_frame_ns_) {
+    const double gap_s = (t_ns - *prev_frame_ns_) * 1e-9;
+    if (gap_s > options_.max_frame_gap_s) {
+      problem = fmt::format("frame time jump of {:.3f} s", gap_s);
+    } else if (use_imu) {
+      problem = ImuProblem(*prev_frame_ns_, t_ns);
+      if (!problem) {
+        const ImuBias bias = backend_.initialized() ? backend_.Newest().bias : ImuBias{};
+        pre = Preintegrate(*prev_frame_ns_, t_ns, bias);
+        const Eigen::Quaterniond cam_from_body = body_from_cam0_.rotation.conjugate();
+        cur_from_prev = cam_from_body * pre.delta_R().conjugate() * body_from_cam0_.rotation;
+      }
+    }
+  }
+  FrontendOutput features;
+  {
+    ScopedTimer timer(timing_, "frontend");
+    features = frontend_.Process(t_ns, left, right, cur_from_prev, !backend_.initialized());
+  }
+  prev_frame_ns_ = t_ns;
+  if (backend_.initialized() && problem) Lose(t_ns, *problem);
+  if (!backend_.initialized()) {
+    if (!TryInitialize(t_ns, features)) return std::nullopt;
+    last_good_ = backend_.Newest();
+    return FrameEstimate{*last_good_, true};
+  }
+  StateEstimate estimate;
+  {
+    ScopedTimer timer(timing_, "backend");
+    estimate = backend_.AddFrame(t_ns, pre, features.observations, features.keyframe);
+  }
+  frontend_.Drop(backend_.rejected_tracks());
+  // Divergence.
+  const bool finite = estimate.world_from_body.translation.allFinite() &&
+                      estimate.world_from_body.rotation.coeffs().allFinite() &&
+                      estimate.velocity.allFinite();
+  if (!finite || estimate.velocity.norm() > options_.max_speed_m_s ||
+      (use_imu && (estimate.bias.gyro.norm() > options_.max_gyro_bias ||
+                   estimate.bias.accel.norm() > options_.max_accel_bias))) {
+    Lose(t_ns, "estimate diverged (speed or bias out of bounds)");
+    return std::nullopt;
+  }
+  // Weak tracking for too long.
+  const double t_s = t_ns * 1e-9;
+  if (backend_.stats().newest_constrained_landmarks < options_.min_tracked_landmarks) {
+    if (weak_since_s_ < 0) weak_since_s_ = t_s;
+    if (t_s - weak_since_s_ > options_.max_weak_tracking_s) {
+      Lose(t_ns, fmt::format("fewer than {} tracked landmarks for {:.2f} s",
+                             options_.min_tracked_landmarks, t_s - weak_since_s_));
+      return std::nullopt;
+    }
+  } else {
+    weak_since_s_ = -1;
+    last_good_ = estimate;  // lost intervals start at the last well-tracked frame
+  }
+  return FrameEstimate{estimate, features.keyframe};
+}
+
+}  // namespace optinav::vio

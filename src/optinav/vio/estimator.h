@@ -1,0 +1,123 @@
+// The visual-inertial estimator: frontend + initialisation + backend + failure handling, fed
+// one IMU sample or stereo frame at a time (sequential and deterministic: same input, same
+// output). The threaded data provider in pipeline.h drives it.
+//
+// Initialisation (stereo-imu): when the IMU window before a frame is still (standard deviations
+// of the 0.1 s block means of gyro and accel under thresholds), gravity is the mean specific force,
+// the gyro bias the mean angular rate, velocity zero ("static"). Otherwise ("in motion") attitude
+// comes from the mean specific force over the window and velocity is left to the window to
+// estimate, with loose priors on tilt and velocity and a tight one on the accelerometer bias.
+// In stereo mode the first pose is the identity (the world is the first body frame) and the pose
+// prior is tight.
+// Failure handling: a frame-time jump, an IMU gap, too few constrained landmarks for too long, or
+// a diverging estimate (speed, biases, non-finite values) ends the current track: the lost
+// interval is recorded with its reason, the backend restarts, and the estimator re-initialises
+// at the next usable frame, continuing from the last good position and yaw.
+#pragma once
+
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "optinav/camera/camera.h"
+#include "optinav/util/timer.h"
+#include "optinav/vio/backend.h"
+#include "optinav/vio/frontend.h"
+
+namespace optinav::vio {
+
+enum class VioMode { kStereoImu, kStereo };
+std::optional<VioMode> ParseVioMode(const std::string& name);  // "stereo-imu" | "stereo"
+std::string VioModeName(VioMode mode);
+
+struct VioOptions {
+  VioMode mode = VioMode::kStereoImu;
+  FrontendOptions frontend;
+  BackendOptions backend;
+  // Initialisation.
+  double init_window_s = 0.5;  // IMU window checked for stillness, s
+  // Stillness: standard deviation of the 0.1 s block means over the window.
+  double still_max_gyro_std = 0.02;   // rad/s
+  double still_max_accel_std = 0.25;  // m/s^2
+  int min_init_stereo_features = 15;  // stereo matches needed to start
+  double motion_init_tilt_sigma_rad = 0.5;
+  double motion_init_velocity_sigma_m_s = 5.0;
+  // In motion, tilt and accelerometer bias are confounded at first: a tight bias prior.
+  double motion_init_accel_bias_sigma = 0.05;
+  // Failure detection.
+  double max_frame_gap_s = 0.5;      // larger jumps between frames end the track
+  double max_imu_gap_s = 0.05;       // larger gaps between IMU samples end the track
+  int min_tracked_landmarks = 8;     // constrained landmarks in the newest frame ...
+  double max_weak_tracking_s = 1.0;  // ... below which for this long ends the track
+  double max_speed_m_s = 60.0;
+  double max_gyro_bias = 0.3;   // rad/s
+  double max_accel_bias = 1.5;  // m/s^2
+
+  std::string Check() const;
+};
+
+// Reads a YAML config (every key optional, defaults above; see config/vio_euroc.yaml).
+// Throws Error naming the file, line and key on unknown keys or bad values.
+VioOptions LoadVioOptions(const std::string& path);
+
+struct LostInterval {
+  int64_t start_ns = 0, end_ns = 0;  // last good frame, first frame of the new track
+  std::string reason;
+};
+
+struct FrameEstimate {
+  StateEstimate state;
+  bool keyframe = false;
+};
+
+class VioEstimator {
+ public:
+  // `body_from_cam0`, `body_from_cam1`: extrinsics; the IMU is the body frame.
+  VioEstimator(const camera::StereoRig& rig, const Rigid3d& body_from_cam0,
+               const ImuNoise& imu_noise, const VioOptions& options);
+  ~VioEstimator();
+
+  // IMU samples in time order; out-of-order or non-finite samples are dropped with a warning.
+  void AddImu(const TimedImuSample& sample);
+  // Processes a stereo pair (8-bit grey). Returns the frame's estimate, or nullopt while not
+  // initialised / lost.
+  std::optional<FrameEstimate> ProcessFrame(int64_t t_ns, const cv::Mat& left,
+                                            const cv::Mat& right);
+  // Closes an open lost interval at the end of the data.
+  void Finish();
+
+  const std::vector<LostInterval>& lost_intervals() const { return lost_; }
+  TimingStats& timing() { return timing_; }
+  int initializations() const { return initializations_; }
+  const std::string& last_init_kind() const { return last_init_kind_; }
+
+ private:
+  bool TryInitialize(int64_t t_ns, const FrontendOutput& features);
+  void Lose(int64_t t_ns, const std::string& reason);
+  std::optional<std::string> ImuProblem(int64_t t0_ns, int64_t t1_ns) const;
+  ImuPreintegration Preintegrate(int64_t t0_ns, int64_t t1_ns, const ImuBias& bias) const;
+
+  camera::StereoRig rig_;
+  Rigid3d body_from_cam0_;
+  ImuNoise imu_noise_;
+  VioOptions options_;
+  StereoFrontend frontend_;
+  SlidingWindowBackend backend_;
+  std::deque<TimedImuSample> imu_;
+  TimingStats timing_;
+  std::vector<LostInterval> lost_;
+  std::optional<int64_t> lost_since_ns_;
+  std::optional<std::string> lost_reason_;
+  std::optional<int64_t> prev_frame_ns_;
+  std::optional<StateEstimate> last_good_;
+  double weak_since_s_ = -1;
+  int initializations_ = 0;
+  std::string last_init_kind_;
+};
+
+}  // namespace optinav::vio

@@ -1,0 +1,308 @@
+#include "optinav/vio/factors.h"
+
+#include <algorithm>
+#include <map>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <ceres/autodiff_cost_function.h>
+#include <ceres/product_manifold.h>
+
+#include "optinav/util/error.h"
+
+namespace optinav::vio {
+
+namespace {
+
+template <typename T>
+using Vec3 = Eigen::Matrix<T, 3, 1>;
+
+template <typename T>
+Eigen::Quaternion<T> ExpT(const Vec3<T>& v) {
+  T wxyz[4];
+  const T aa[3] = {v[0], v[1], v[2]};
+  ceres::AngleAxisToQuaternion(aa, wxyz);
+  return Eigen::Quaternion<T>(wxyz[0], wxyz[1], wxyz[2], wxyz[3]);
+}
+
+template <typename T>
+Vec3<T> LogT(const Eigen::Quaternion<T>& q) {
+  const T wxyz[4] = {q.w(), q.x(), q.y(), q.z()};
+  T aa[3];
+  ceres::QuaternionToAngleAxis(wxyz, aa);
+  return {aa[0], aa[1], aa[2]};
+}
+
+class ImuFunctor {
+ public:
+  ImuFunctor(const ImuPreintegration& pre, const Eigen::Vector3d& gravity)
+      : dt_(pre.dt_s()),
+        delta_R_(pre.delta_R()),
+        delta_v_(pre.delta_v()),
+        delta_p_(pre.delta_p()),
+        dR_dbg_(pre.dR_dbg()),
+        dv_dbg_(pre.dv_dbg()),
+        dv_dba_(pre.dv_dba()),
+        dp_dbg_(pre.dp_dbg()),
+        dp_dba_(pre.dp_dba()),
+        bg0_(pre.linearization_bias().gyro),
+        ba0_(pre.linearization_bias().accel),
+        gravity_(gravity) {
+    // Whitening: sqrt_info^T sqrt_info = covariance^-1 (regularised: tiny intervals are
+    // nearly singular in rotation-velocity coupling).
+    Matrix15d cov = pre.FullCovariance();
+    cov.diagonal().array() += 1e-12;
+    const Matrix15d info = cov.inverse();
+    const Matrix15d symmetric = 0.5 * (info + info.transpose());
+    sqrt_info_ = Eigen::LLT<Matrix15d>(symmetric).matrixL().transpose();
+  }
+
+  template <typename T>
+  bool operator()(const T* pose_i, const T* sb_i, const T* pose_j, const T* sb_j,
+                  T* residuals) const {
+    const Eigen::Map<const Vec3<T>> p_i(pose_i), p_j(pose_j);
+    const Eigen::Map<const Eigen::Quaternion<T>> q_i(pose_i + 3), q_j(pose_j + 3);
+    const Eigen::Map<const Vec3<T>> v_i(sb_i), bg_i(sb_i + 3), ba_i(sb_i + 6);
+    const Eigen::Map<const Vec3<T>> v_j(sb_j), bg_j(sb_j + 3), ba_j(sb_j + 6);
+    const Vec3<T> dbg = bg_i - bg0_.cast<T>();
+    const Vec3<T> dba = ba_i - ba0_.cast<T>();
+    const Eigen::Quaternion<T> dR = delta_R_.cast<T>() * ExpT<T>(dR_dbg_.cast<T>() * dbg);
+    const Vec3<T> dv = delta_v_.cast<T>() + dv_dbg_.cast<T>() * dbg + dv_dba_.cast<T>() * dba;
+    const Vec3<T> dp = delta_p_.cast<T>() + dp_dbg_.cast<T>() * dbg + dp_dba_.cast<T>() * dba;
+    const Eigen::Quaternion<T> qi_inv = q_i.conjugate();
+    const Vec3<T> g = gravity_.cast<T>();
+    const T dt(dt_);
+    Eigen::Matrix<T, 15, 1> r;
+    r.template segment<3>(0) = LogT<T>(dR.conjugate() * (qi_inv * q_j));
+    r.template segment<3>(3) = qi_inv * (v_j - v_i - g * dt) - dv;
+    r.template segment<3>(6) = qi_inv * (p_j - p_i - v_i * dt - T(0.5) * g * dt * dt) - dp;
+    r.template segment<3>(9) = bg_j - bg_i;
+    r.template segment<3>(12) = ba_j - ba_i;
+    Eigen::Map<Eigen::Matrix<T, 15, 1>> out(residuals);
+    out = sqrt_info_.cast<T>() * r;
+    return true;
+  }
+
+ private:
+  double dt_;
+  Eigen::Quaterniond delta_R_;
+  Eigen::Vector3d delta_v_, delta_p_;
+  Eigen::Matrix3d dR_dbg_, dv_dbg_, dv_dba_, dp_dbg_, dp_dba_;
+  Eigen::Vector3d bg0_, ba0_, gravity_;
+  Matrix15d sqrt_info_;
+};
+
+class ReprojectionFunctor {
+ public:
+  ReprojectionFunctor(const Rigid3d& cam_from_body, const Eigen::Vector2d& observed, double scale)
+      : cam_from_body_(cam_from_body), observed_(observed), scale_(scale) {}
+
+  template <typename T>
+  bool operator()(const T* pose, const T* point, T* residuals) const {
+    const Eigen::Map<const Vec3<T>> p(pose), x_world(point);
+    const Eigen::Map<const Eigen::Quaternion<T>> q(pose + 3);
+    const Vec3<T> p_in_body = q.conjugate() * (x_world - p);
+    const Vec3<T> p_in_cam =
+        cam_from_body_.rotation.cast<T>() * p_in_body + cam_from_body_.translation.cast<T>();
+    // Points at or behind the camera: a large constant residual (no gradient towards them).
+    if (p_in_cam.z() < T(1e-3)) {
+      residuals[0] = residuals[1] = T(scale_);
+      return true;
+    }
+    residuals[0] = T(scale_) * (p_in_cam.x() / p_in_cam.z() - T(observed_.x()));
+    residuals[1] = T(scale_) * (p_in_cam.y() / p_in_cam.z() - T(observed_.y()));
+    return true;
+  }
+
+ private:
+  Rigid3d cam_from_body_;
+  Eigen::Vector2d observed_;
+  double scale_;
+};
+
+class PriorCost : public ceres::CostFunction {
+ public:
+  explicit PriorCost(const LinearPrior& prior) : prior_(prior) {
+    set_num_residuals(static_cast<int>(prior_.J.rows()));
+    for (const LinearPrior::Block& b : prior_.blocks)
+      mutable_parameter_block_sizes()->push_back(b.ambient_size);
+  }
+
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    Eigen::Map<Eigen::VectorXd> r(residuals, prior_.J.rows());
+    r = prior_.r0;
+    int offset = 0;
+    for (size_t k = 0; k < prior_.blocks.size(); ++k) {
+      const LinearPrior::Block& b = prior_.blocks[k];
+      Eigen::VectorXd delta(b.tangent_size);
+      if (b.manifold) {
+        b.manifold->Minus(parameters[k], b.x0.data(), delta.data());
+      } else {
+        for (int i = 0; i < b.ambient_size; ++i) delta[i] = parameters[k][i] - b.x0[i];
+      }
+      r += prior_.J.middleCols(offset, b.tangent_size) * delta;
+      if (jacobians && jacobians[k]) {
+        Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> jac(
+            jacobians[k], prior_.J.rows(), b.ambient_size);
+        if (b.manifold) {
+          Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> minus_jac(
+              b.tangent_size, b.ambient_size);
+          b.manifold->MinusJacobian(parameters[k], minus_jac.data());
+          jac = prior_.J.middleCols(offset, b.tangent_size) * minus_jac;
+        } else {
+          jac = prior_.J.middleCols(offset, b.tangent_size);
+        }
+      }
+      offset += b.tangent_size;
+    }
+    return true;
+  }
+
+ private:
+  LinearPrior prior_;
+};
+
+using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+}  // namespace
+
+const ceres::Manifold* PoseManifold() {
+  static const auto* manifold =
+      new ceres::ProductManifold<ceres::EuclideanManifold<3>, ceres::EigenQuaternionManifold>();
+  return manifold;
+}
+
+ceres::CostFunction* CreateImuFactor(const ImuPreintegration& preintegration,
+                                     const Eigen::Vector3d& gravity) {
+  return new ceres::AutoDiffCostFunction<ImuFunctor, 15, kPoseSize, kSpeedBiasSize, kPoseSize,
+                                         kSpeedBiasSize>(new ImuFunctor(preintegration, gravity));
+}
+
+ceres::CostFunction* CreateReprojectionFactor(const Rigid3d& cam_from_body,
+                                              const Eigen::Vector2d& observed, double focal_px,
+                                              double sigma_px) {
+  return new ceres::AutoDiffCostFunction<ReprojectionFunctor, 2, kPoseSize, kPointSize>(
+      new ReprojectionFunctor(cam_from_body, observed, focal_px / sigma_px));
+}
+
+bool LinearPrior::Involves(const double* values) const {
+  return std::any_of(blocks.begin(), blocks.end(),
+                     [&](const Block& b) { return b.values == values; });
+}
+
+ceres::CostFunction* LinearPrior::CreateCostFunction() const { return new PriorCost(*this); }
+
+LinearPrior Marginalize(const std::vector<const ResidualSpec*>& residuals,
+                        const std::vector<double*>& marginalize,
+                        const std::function<const ceres::Manifold*(const double*)>& manifold_of,
+                        const std::function<int(const double*)>& size_of) {
+  // Order: marginalised blocks first, then the kept blocks in order of appearance.
+  std::vector<double*> order(marginalize.begin(), marginalize.end());
+  std::map<const double*, int> index;
+  for (size_t i = 0; i < order.size(); ++i) index[order[i]] = static_cast<int>(i);
+  for (const ResidualSpec* spec : residuals)
+    for (double* b : spec->blocks)
+      if (!index.count(b)) {
+        index[b] = static_cast<int>(order.size());
+        order.push_back(b);
+      }
+  std::vector<int> offset(order.size() + 1, 0), tangent(order.size()), ambient(order.size());
+  for (size_t i = 0; i < order.size(); ++i) {
+    const ceres::Manifold* m = manifold_of(order[i]);
+    ambient[i] = size_of(order[i]);
+    tangent[i] = m ? m->TangentSize() : ambient[i];
+    offset[i + 1] = offset[i] + tangent[i];
+  }
+  int m_dim = 0;
+  for (size_t i = 0; i < marginalize.size(); ++i) m_dim += tangent[i];
+  const int n = offset.back();
+  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(n, n);
+  Eigen::VectorXd b = Eigen::VectorXd::Zero(n);
+
+  for (const ResidualSpec* spec : residuals) {
+    const int rows = spec->cost->num_residuals();
+    const size_t nb = spec->blocks.size();
+    Eigen::VectorXd r(rows);
+    std::vector<RowMatrix> jac_global(nb);
+    std::vector<double*> jac_ptrs(nb);
+    for (size_t k = 0; k < nb; ++k) {
+      jac_global[k].resize(rows, size_of(spec->blocks[k]));
+      jac_ptrs[k] = jac_global[k].data();
+    }
+    if (!spec->cost->Evaluate(spec->blocks.data(), r.data(), jac_ptrs.data())) continue;
+    // Robust loss: scale by sqrt(rho') (first-order, as iteratively reweighted least squares).
+    double weight = 1.0;
+    if (spec->loss) {
+      double rho[3];
+      spec->loss->Evaluate(r.squaredNorm(), rho);
+      weight = std::sqrt(std::max(rho[1], 0.0));
+    }
+    r *= weight;
+    std::vector<Eigen::MatrixXd> jac_local(nb);
+    for (size_t k = 0; k < nb; ++k) {
+      const int idx = index.at(spec->blocks[k]);
+      const ceres::Manifold* m = manifold_of(spec->blocks[k]);
+      if (m) {
+        RowMatrix plus_jac(ambient[idx], tangent[idx]);
+        m->PlusJacobian(spec->blocks[k], plus_jac.data());
+        jac_local[k] = weight * jac_global[k] * plus_jac;
+      } else {
+        jac_local[k] = weight * jac_global[k];
+      }
+    }
+    for (size_t k = 0; k < nb; ++k) {
+      const int ik = index.at(spec->blocks[k]);
+      b.segment(offset[ik], tangent[ik]) += jac_local[k].transpose() * r;
+      for (size_t l = 0; l < nb; ++l) {
+        const int il = index.at(spec->blocks[l]);
+        H.block(offset[ik], offset[il], tangent[ik], tangent[il]) +=
+            jac_local[k].transpose() * jac_local[l];
+      }
+    }
+  }
+
+  // Schur complement on the marginalised part (pseudo-inverse: gauge directions of a landmark
+  // seen once are rank-deficient).
+  const int r_dim = n - m_dim;
+  const Eigen::MatrixXd Hmm =
+      0.5 * (H.topLeftCorner(m_dim, m_dim) + H.topLeftCorner(m_dim, m_dim).transpose());
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig_mm(Hmm);
+  const Eigen::VectorXd lm = eig_mm.eigenvalues();
+  const double max_lm = lm.size() ? std::max(lm.maxCoeff(), 1e-12) : 1.0;
+  Eigen::VectorXd inv_lm(lm.size());
+  for (int i = 0; i < lm.size(); ++i) inv_lm[i] = lm[i] > 1e-10 * max_lm ? 1.0 / lm[i] : 0.0;
+  const Eigen::MatrixXd Hmm_inv =
+      eig_mm.eigenvectors() * inv_lm.asDiagonal() * eig_mm.eigenvectors().transpose();
+  const Eigen::MatrixXd Hrm = H.bottomLeftCorner(r_dim, m_dim);
+  Eigen::MatrixXd Hs = H.bottomRightCorner(r_dim, r_dim) - Hrm * Hmm_inv * Hrm.transpose();
+  Hs = 0.5 * (Hs + Hs.transpose());
+  const Eigen::VectorXd bs = b.tail(r_dim) - Hrm * Hmm_inv * b.head(m_dim);
+
+  // Factor Hs = J^T J, bs = J^T r0.
+  LinearPrior prior;
+  if (r_dim == 0) return prior;
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(Hs);
+  const Eigen::VectorXd l = eig.eigenvalues();
+  const double max_l = std::max(l.maxCoeff(), 1e-12);
+  Eigen::VectorXd sqrt_l(r_dim), inv_sqrt_l(r_dim);
+  for (int i = 0; i < r_dim; ++i) {
+    const bool keep = l[i] > 1e-10 * max_l;
+    sqrt_l[i] = keep ? std::sqrt(l[i]) : 0.0;
+    inv_sqrt_l[i] = keep ? 1.0 / std::sqrt(l[i]) : 0.0;
+  }
+  prior.J = sqrt_l.asDiagonal() * eig.eigenvectors().transpose();
+  prior.r0 = inv_sqrt_l.asDiagonal() * eig.eigenvectors().transpose() * bs;
+  for (size_t i = marginalize.size(); i < order.size(); ++i) {
+    LinearPrior::Block block;
+    block.values = order[i];
+    block.ambient_size = ambient[i];
+    block.tangent_size = tangent[i];
+    block.manifold = manifold_of(order[i]);
+    block.x0.assign(order[i], order[i] + ambient[i]);
+    prior.blocks.push_back(block);
+  }
+  return prior;
+}
+
+}  // namespace optinav::vio

@@ -1,0 +1,329 @@
+#include "optinav/vio/frontend.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/video/tracking.hpp>
+
+#include "optinav/util/error.h"
+
+namespace optinav::vio {
+
+namespace {
+
+Eigen::Vector2d ToEigen(const cv::Point2f& p) { return {p.x, p.y}; }
+cv::Point2f ToCv(const Eigen::Vector2d& p) {
+  return {static_cast<float>(p.x()), static_cast<float>(p.y())};
+}
+
+}  // namespace
+
+std::string FrontendOptions::Check() const {
+  if (max_features < 8) return "max_features must be >= 8";
+  if (grid_cols < 1 || grid_rows < 1) return "grid_cols and grid_rows must be >= 1";
+  if (!(min_distance_px > 0)) return "min_distance_px must be > 0";
+  if (!(quality_level > 0 && quality_level < 1)) return "quality_level must be in (0, 1)";
+  if (klt_window_px < 5) return "klt_window_px must be >= 5";
+  if (stereo_window_px < 5) return "stereo_window_px must be >= 5";
+  if (klt_pyramid_levels < 0 || klt_pyramid_levels > 6) return "klt_pyramid_levels must be 0..6";
+  if (klt_max_iterations < 1) return "klt_max_iterations must be >= 1";
+  if (!(forward_backward_px > 0)) return "forward_backward_px must be > 0";
+  if (!(ransac_px > 0)) return "ransac_px must be > 0";
+  if (!(epipolar_px > 0)) return "epipolar_px must be > 0";
+  if (border_px < 0) return "border_px must be >= 0";
+  if (!(keyframe_max_interval_s > 0)) return "keyframe_max_interval_s must be > 0";
+  if (!(keyframe_min_tracked_ratio >= 0 && keyframe_min_tracked_ratio <= 1))
+    return "keyframe_min_tracked_ratio must be in [0, 1]";
+  if (!(keyframe_min_parallax_px > 0)) return "keyframe_min_parallax_px must be > 0";
+  return "";
+}
+
+StereoFrontend::StereoFrontend(const camera::StereoRig& rig, const FrontendOptions& options)
+    : rig_(rig), options_(options) {
+  const std::string problem = options_.Check();
+  OPTINAV_CHECK_MSG(problem.empty(), problem);
+  essential_ =
+      Hat(rig_.right_from_left.translation) * rig_.right_from_left.rotation.toRotationMatrix();
+}
+
+void StereoFrontend::Reset() {
+  prev_pyramid_.clear();
+  tracks_.clear();
+  keyframe_tracks_.clear();
+  has_keyframe_ = false;
+}
+
+void StereoFrontend::Drop(const std::set<uint64_t>& ids) {
+  if (ids.empty()) return;
+  std::erase_if(tracks_, [&](const Track& t) { return ids.count(t.id) > 0; });
+}
+
+void StereoFrontend::Detect(const cv::Mat& image, std::vector<Track>* tracks) {
+  const int cols = options_.grid_cols, rows = options_.grid_rows;
+  const int cell_w = image.cols / cols, cell_h = image.rows / rows;
+  const int per_cell = (options_.max_features + cols * rows - 1) / (cols * rows);
+  std::vector<int> count(cols * rows, 0);
+  cv::Mat mask(image.size(), CV_8UC1, cv::Scalar(255));
+  const int b = options_.border_px;
+  mask.rowRange(0, std::min(b, mask.rows)).setTo(0);
+  mask.rowRange(std::max(0, mask.rows - b), mask.rows).setTo(0);
+  mask.colRange(0, std::min(b, mask.cols)).setTo(0);
+  mask.colRange(std::max(0, mask.cols - b), mask.cols).setTo(0);
+  for (const Track& t : *tracks) {
+    const int cx = std::clamp(static_cast<int>(t.pixel.x) / std::max(cell_w, 1), 0, cols - 1);
+    const int cy = std::clamp(static_cast<int>(t.pixel.y) / std::max(cell_h, 1), 0, rows - 1);
+    ++count[cy * cols + cx];
+    cv::circle(mask, t.pixel, static_cast<int>(options_.min_distance_px), cv::Scalar(0), -1);
+  }
+  int budget = options_.max_features - static_cast<int>(tracks->size());
+  std::vector<cv::Point2f> corners;
+  for (int cy = 0; cy < rows && budget > 0; ++cy) {
+    for (int cx = 0; cx < cols && budget > 0; ++cx) {
+      const int want = std::min(per_cell - count[cy * cols + cx], budget);
+      if (want <= 0) continue;
+      const cv::Rect cell(cx * cell_w, cy * cell_h, cell_w, cell_h);
+      corners.clear();
+      cv::goodFeaturesToTrack(image(cell), corners, want, options_.quality_level,
+                              options_.min_distance_px, mask(cell), 3);
+      for (const cv::Point2f& c : corners) {
+        const cv::Point2f p(c.x + cell.x, c.y + cell.y);
+        tracks->push_back({next_id_++, p, std::nullopt, 0});
+        cv::circle(mask, p, static_cast<int>(options_.min_distance_px), cv::Scalar(0), -1);
+        --budget;
+      }
+    }
+  }
+}
+
+void StereoFrontend::MatchStereo(const std::vector<cv::Mat>& left_pyramid,
+                                 const std::vector<cv::Mat>& right_pyramid,
+                                 std::vector<Track>* tracks_in_out,
+                                 std::vector<std::optional<cv::Point2f>>* right, bool all) {
+  std::vector<Track>& all_tracks = *tracks_in_out;
+  right->assign(all_tracks.size(), std::nullopt);
+  std::vector<size_t> subset;
+  for (size_t i = 0; i < all_tracks.size(); ++i)
+    if (all || (!all_tracks[i].stereo_offset && all_tracks[i].stereo_failures < 2))
+      subset.push_back(i);
+  if (subset.empty()) return;
+  std::vector<Track> tracks;
+  for (size_t i : subset) tracks.push_back(all_tracks[i]);
+  std::vector<cv::Point2f> left_pts, right_pts, back_pts;
+  // Initial guess: the track's last disparity, else the left ray at the typical depth.
+  for (const Track& t : tracks) {
+    left_pts.push_back(t.pixel);
+    cv::Point2f guess = t.pixel;
+    if (t.stereo_offset) {
+      guess = t.pixel + *t.stereo_offset;
+    } else {
+      const Eigen::Vector3d p =
+          rig_.right_from_left * (rig_.left.Unproject(ToEigen(t.pixel)) * stereo_depth_guess_m_);
+      if (const auto q = rig_.right.Project(p)) guess = ToCv(*q);
+    }
+    right_pts.push_back(guess);
+  }
+  std::vector<uchar> status, back_status;
+  std::vector<float> err;
+  const cv::Size win(options_.stereo_window_px, options_.stereo_window_px);
+  const cv::TermCriteria term(cv::TermCriteria::COUNT | cv::TermCriteria::EPS,
+                              options_.klt_max_iterations, 0.01);
+  cv::calcOpticalFlowPyrLK(left_pyramid, right_pyramid, left_pts, right_pts, status, err, win,
+                           options_.klt_pyramid_levels, term, cv::OPTFLOW_USE_INITIAL_FLOW);
+  back_pts = left_pts;
+  cv::calcOpticalFlowPyrLK(right_pyramid, left_pyramid, right_pts, back_pts, back_status, err, win,
+                           options_.klt_pyramid_levels, term, cv::OPTFLOW_USE_INITIAL_FLOW);
+  const double focal = rig_.left.fx;
+  std::vector<double> depths;
+  for (size_t i = 0; i < tracks.size(); ++i) {
+    all_tracks[subset[i]].stereo_offset.reset();
+    ++all_tracks[subset[i]].stereo_failures;  // reset below on success
+    if (!status[i] || !back_status[i]) continue;
+    if (cv::norm(back_pts[i] - left_pts[i]) > options_.forward_backward_px) continue;
+    if (!rig_.right.InImage(ToEigen(right_pts[i]), options_.border_px)) continue;
+    const Eigen::Vector2d nl = rig_.left.PixelToNormalized(ToEigen(left_pts[i]));
+    const Eigen::Vector2d nr = rig_.right.PixelToNormalized(ToEigen(right_pts[i]));
+    const Eigen::Vector3d xl(nl.x(), nl.y(), 1.0), xr(nr.x(), nr.y(), 1.0);
+    // Distance of the right point to the epipolar line of the left one, in pixels.
+    const Eigen::Vector3d line = essential_ * xl;
+    const double dist = std::abs(xr.dot(line)) / line.head<2>().norm() * focal;
+    if (dist > options_.epipolar_px) continue;
+    // In front of both cameras: the triangulated depth along the left ray must be positive.
+    const auto point =
+        camera::TriangulateTwoView(Rigid3d::Identity(), rig_.right_from_left, nl, nr);
+    if (!point || point->z() <= 0) continue;
+    (*right)[subset[i]] = right_pts[i];
+    all_tracks[subset[i]].stereo_offset = right_pts[i] - left_pts[i];
+    all_tracks[subset[i]].stereo_failures = 0;
+    depths.push_back(point->z());
+  }
+  if (!depths.empty()) {
+    std::nth_element(depths.begin(), depths.begin() + depths.size() / 2, depths.end());
+    stereo_depth_guess_m_ = depths[depths.size() / 2];
+  }
+}
+
+bool StereoFrontend::DecideKeyframe(int64_t t_ns, const std::vector<Track>& tracks) {
+  bool keyframe = !has_keyframe_;
+  if (!keyframe) {
+    if ((t_ns - keyframe_t_ns_) * 1e-9 >= options_.keyframe_max_interval_s) keyframe = true;
+    std::map<uint64_t, cv::Point2f> at_keyframe;
+    for (const Track& t : keyframe_tracks_) at_keyframe[t.id] = t.pixel;
+    int alive = 0;
+    double parallax = 0;
+    for (const Track& t : tracks) {
+      const auto it = at_keyframe.find(t.id);
+      if (it == at_keyframe.end()) continue;
+      ++alive;
+      // Rotation-compensated: where the keyframe pixel would be after the gyro rotation alone.
+      Eigen::Vector2d from = ToEigen(it->second);
+      if (has_rotation_since_keyframe_) {
+        const Eigen::Vector3d ray = cur_from_keyframe_ * rig_.left.Unproject(from);
+        if (const auto p = rig_.left.Project(ray)) from = *p;
+      }
+      parallax += (ToEigen(t.pixel) - from).norm();
+    }
+    if (alive > 0) parallax /= alive;
+    if (!keyframe_tracks_.empty() &&
+        alive < options_.keyframe_min_tracked_ratio * keyframe_tracks_.size())
+      keyframe = true;
+    if (parallax >= options_.keyframe_min_parallax_px) keyframe = true;
+  }
+  if (keyframe) {
+    has_keyframe_ = true;
+    keyframe_t_ns_ = t_ns;
+    keyframe_tracks_ = tracks;
+    cur_from_keyframe_.setIdentity();
+    has_rotation_since_keyframe_ = true;
+  }
+  return keyframe;
+}
+
+FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const cv::Mat& right,
+                                       const std::optional<Eigen::Quaterniond>& cur_from_prev,
+                                       bool match_all_stereo) {
+  OPTINAV_CHECK(left.type() == CV_8UC1 && right.type() == CV_8UC1);
+  FrontendOutput out;
+  out.t_ns = t_ns;
+  const cv::Size win(options_.klt_window_px, options_.klt_window_px);
+  const cv::TermCriteria term(cv::TermCriteria::COUNT | cv::TermCriteria::EPS,
+                              options_.klt_max_iterations, 0.01);
+  Timer stage;
+  auto lap = [&](const char* name) {
+    if (timing_) timing_->Add(name, stage.ElapsedSeconds());
+    stage.Restart();
+  };
+  std::vector<cv::Mat> left_pyramid, right_pyramid;
+  const int pad = std::max(options_.klt_window_px, options_.stereo_window_px);
+  cv::buildOpticalFlowPyramid(left, left_pyramid, cv::Size(pad, pad), options_.klt_pyramid_levels);
+  cv::buildOpticalFlowPyramid(right, right_pyramid, cv::Size(pad, pad),
+                              options_.klt_pyramid_levels);
+  lap("frontend.pyramid");
+
+  // 1. Temporal tracking with the forward-backward check.
+  std::vector<Track> tracks;
+  if (!tracks_.empty() && !prev_pyramid_.empty()) {
+    std::vector<cv::Point2f> prev_pts, cur_pts, back_pts;
+    for (const Track& t : tracks_) {
+      prev_pts.push_back(t.pixel);
+      cv::Point2f guess = t.pixel;
+      if (cur_from_prev) {
+        const Eigen::Vector3d ray = *cur_from_prev * rig_.left.Unproject(ToEigen(t.pixel));
+        if (const auto p = rig_.left.Project(ray)) guess = ToCv(*p);
+      }
+      cur_pts.push_back(guess);
+    }
+    std::vector<uchar> status, back_status;
+    std::vector<float> err;
+    cv::calcOpticalFlowPyrLK(prev_pyramid_, left_pyramid, prev_pts, cur_pts, status, err, win,
+                             options_.klt_pyramid_levels, term, cv::OPTFLOW_USE_INITIAL_FLOW);
+    back_pts = prev_pts;
+    cv::calcOpticalFlowPyrLK(left_pyramid, prev_pyramid_, cur_pts, back_pts, back_status, err, win,
+                             options_.klt_pyramid_levels, term, cv::OPTFLOW_USE_INITIAL_FLOW);
+    std::vector<Track> kept;
+    std::vector<cv::Point2f> kept_prev;
+    for (size_t i = 0; i < tracks_.size(); ++i) {
+      if (!status[i] || !back_status[i] ||
+          cv::norm(back_pts[i] - prev_pts[i]) > options_.forward_backward_px ||
+          !rig_.left.InImage(ToEigen(cur_pts[i]), options_.border_px)) {
+        ++out.stats.rejected_fb;
+        continue;
+      }
+      kept.push_back(
+          {tracks_[i].id, cur_pts[i], tracks_[i].stereo_offset, tracks_[i].stereo_failures});
+      kept_prev.push_back(prev_pts[i]);
+    }
+    lap("frontend.track");
+    // 2. Geometric RANSAC on undistorted pixels when there is motion to test.
+    std::vector<double> flow;
+    for (size_t i = 0; i < kept.size(); ++i) flow.push_back(cv::norm(kept[i].pixel - kept_prev[i]));
+    if (!flow.empty()) {
+      std::nth_element(flow.begin(), flow.begin() + flow.size() / 2, flow.end());
+      out.stats.median_flow_px = flow[flow.size() / 2];
+    }
+    if (kept.size() >= 12 && out.stats.median_flow_px > 1.0) {
+      // Undistorted pixels (pinhole projection of the normalised coordinates).
+      std::vector<cv::Point2f> a(kept.size()), b(kept.size());
+      for (size_t i = 0; i < kept.size(); ++i) {
+        const Eigen::Vector2d na = rig_.left.PixelToNormalized(ToEigen(kept_prev[i]));
+        const Eigen::Vector2d nb = rig_.left.PixelToNormalized(ToEigen(kept[i].pixel));
+        a[i] = cv::Point2f(static_cast<float>(rig_.left.fx * na.x() + rig_.left.cx),
+                           static_cast<float>(rig_.left.fy * na.y() + rig_.left.cy));
+        b[i] = cv::Point2f(static_cast<float>(rig_.left.fx * nb.x() + rig_.left.cx),
+                           static_cast<float>(rig_.left.fy * nb.y() + rig_.left.cy));
+      }
+      std::vector<uchar> inlier;
+      const cv::Mat F =
+          cv::findFundamentalMat(a, b, cv::FM_RANSAC, options_.ransac_px, 0.99, inlier);
+      if (!F.empty() && inlier.size() == kept.size()) {
+        std::vector<Track> filtered;
+        for (size_t i = 0; i < kept.size(); ++i) {
+          if (inlier[i])
+            filtered.push_back(kept[i]);
+          else
+            ++out.stats.rejected_ransac;
+        }
+        kept = std::move(filtered);
+      }
+    }
+    tracks = std::move(kept);
+    lap("frontend.ransac");
+  }
+  out.stats.tracked = static_cast<int>(tracks.size());
+
+  // 3. New corners where the grid is thin.
+  const size_t before = tracks.size();
+  Detect(left, &tracks);
+  out.stats.detected = static_cast<int>(tracks.size() - before);
+  lap("frontend.detect");
+
+  if (cur_from_prev) {
+    cur_from_keyframe_ = (*cur_from_prev * cur_from_keyframe_).normalized();
+  } else {
+    has_rotation_since_keyframe_ = false;
+  }
+  // 4. Keyframe decision (on the left tracks), then stereo matching: every track at keyframes
+  // (the backend keeps only keyframe observations and the newest frame's), else only tracks
+  // never matched yet (new landmarks need their first stereo triangulation).
+  out.keyframe = DecideKeyframe(t_ns, tracks);
+  std::vector<std::optional<cv::Point2f>> right_pts;
+  MatchStereo(left_pyramid, right_pyramid, &tracks, &right_pts, out.keyframe || match_all_stereo);
+  for (size_t i = 0; i < tracks.size(); ++i) {
+    StereoObservation obs;
+    obs.track_id = tracks[i].id;
+    obs.left = rig_.left.PixelToNormalized(ToEigen(tracks[i].pixel));
+    if (right_pts[i]) {
+      obs.right = rig_.right.PixelToNormalized(ToEigen(*right_pts[i]));
+      ++out.stats.stereo;
+    }
+    out.observations.push_back(obs);
+  }
+  lap("frontend.stereo");
+  tracks_ = std::move(tracks);
+  prev_pyramid_ = std::move(left_pyramid);
+  return out;
+}
+
+}  // namespace optinav::vio

@@ -1,0 +1,114 @@
+// The stereo frontend: feature tracks for the backend.
+//
+// Per frame:
+//  1. KLT (pyramidal Lucas-Kanade) tracks the previous left features into the new left image,
+//     starting from a prediction by the IMU rotation when given, and keeps a track only if
+//     tracking back lands within `forward_backward_px` of where it started;
+//  2. geometric outlier rejection: RANSAC on the fundamental matrix of the undistorted pixel
+//     coordinates (skipped when the median flow is below a pixel: no baseline to test);
+//  3. new Shi-Tomasi corners fill the grid cells that lack features, away from existing ones;
+//  4. keyframe selection: time since the last keyframe, fraction of its tracks still alive, and
+//     mean pixel parallax since it (with the gyro rotation removed when it is given);
+//  5. stereo: KLT from left to right (with a backward check, starting from the track's last
+//     disparity or the median depth), accepted only when the undistorted right point lies within
+//     `epipolar_px` of the epipolar line of the left one and in front of both cameras. All tracks
+//     are matched at keyframes; between keyframes only tracks without a match that have failed
+//     fewer than two attempts (the backend keeps only keyframe observations besides the newest
+//     frame's, and new landmarks need a first stereo triangulation).
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "optinav/camera/camera.h"
+#include "optinav/util/timer.h"
+#include "optinav/vio/backend.h"
+
+namespace optinav::vio {
+
+struct FrontendOptions {
+  int max_features = 150;  // tracks kept per frame
+  int grid_cols = 8;       // detection grid over the image
+  int grid_rows = 6;
+  double min_distance_px = 20.0;  // between features
+  double quality_level = 0.01;    // Shi-Tomasi, relative to the best corner
+  int klt_window_px = 15;         // KLT window side (temporal tracking)
+  int stereo_window_px = 21;      // KLT window side for left-right matching
+  int klt_pyramid_levels = 3;
+  int klt_max_iterations = 20;
+  double forward_backward_px = 1.0;  // max error of the forward-backward check
+  double ransac_px = 1.0;            // fundamental-matrix RANSAC threshold
+  double epipolar_px = 2.0;          // stereo match distance to the epipolar line
+  int border_px = 10;                // features closer to the border are dropped
+  double keyframe_max_interval_s = 0.5;
+  double keyframe_min_tracked_ratio = 0.75;
+  double keyframe_min_parallax_px = 15.0;
+
+  std::string Check() const;
+};
+
+struct FrontendStats {
+  int tracked = 0, rejected_fb = 0, rejected_ransac = 0, detected = 0, stereo = 0;
+  double median_flow_px = 0;
+};
+
+struct FrontendOutput {
+  int64_t t_ns = 0;
+  std::vector<StereoObservation> observations;
+  bool keyframe = false;
+  FrontendStats stats;
+};
+
+class StereoFrontend {
+ public:
+  StereoFrontend(const camera::StereoRig& rig, const FrontendOptions& options);
+
+  // `left`, `right`: 8-bit grey images of the calibrated size. `cur_cam_from_prev_cam`: the
+  // left camera's rotation since the previous frame (from the gyro), or nullopt.
+  // `match_all_stereo`: stereo-match every track even on a non-keyframe (for initialisation).
+  FrontendOutput Process(int64_t t_ns, const cv::Mat& left, const cv::Mat& right,
+                         const std::optional<Eigen::Quaterniond>& cur_cam_from_prev_cam,
+                         bool match_all_stereo = false);
+  // Forget every track (after a tracking failure).
+  void Reset();
+  // Stop tracking these ids (backend outliers).
+  void Drop(const std::set<uint64_t>& track_ids);
+  // Records sub-stage times (frontend.pyramid, .track, .ransac, .detect, .stereo) when set.
+  void set_timing(TimingStats* timing) { timing_ = timing; }
+
+ private:
+  struct Track {
+    uint64_t id;
+    cv::Point2f pixel;
+    std::optional<cv::Point2f> stereo_offset;  // right - left pixel at the last stereo match
+    int stereo_failures = 0;                   // failed attempts since the last match
+  };
+  void Detect(const cv::Mat& image, std::vector<Track>* tracks);
+  void MatchStereo(const std::vector<cv::Mat>& left_pyramid,
+                   const std::vector<cv::Mat>& right_pyramid, std::vector<Track>* tracks,
+                   std::vector<std::optional<cv::Point2f>>* right, bool all);
+  bool DecideKeyframe(int64_t t_ns, const std::vector<Track>& tracks);
+
+  camera::StereoRig rig_;
+  FrontendOptions options_;
+  Eigen::Matrix3d essential_;  // right_x^T E left_x = 0 for normalised points
+  std::vector<cv::Mat> prev_pyramid_;
+  std::vector<Track> tracks_;
+  uint64_t next_id_ = 1;
+  // The last keyframe: its time and its tracks' pixels.
+  int64_t keyframe_t_ns_ = 0;
+  std::vector<Track> keyframe_tracks_;
+  bool has_keyframe_ = false;
+  double stereo_depth_guess_m_ = 3.0;
+  // Gyro rotation accumulated since the last keyframe (parallax is measured without it).
+  Eigen::Quaterniond cur_from_keyframe_ = Eigen::Quaterniond::Identity();
+  bool has_rotation_since_keyframe_ = false;
+  TimingStats* timing_ = nullptr;  // median depth of the last stereo matches
+};
+
+}  // namespace optinav::vio

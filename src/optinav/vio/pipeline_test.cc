@@ -1,0 +1,247 @@
+#include "optinav/vio/pipeline.h"
+
+#include <cstdio>
+#include <filesystem>
+#include <map>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "optinav/eval/metrics.h"
+#include "optinav/io/euroc_dataset.h"
+#include "optinav/io/trajectory_io.h"
+#include "optinav/util/testing.h"
+
+namespace optinav::vio {
+namespace {
+
+std::string Micro() {
+  return (optinav::testing::SharedDataDir() / "euroc" / "V1_01_micro").string();
+}
+
+Trajectory GroundTruth() {
+  return io::ReadTrajectory((optinav::testing::SharedDataDir() / "euroc" / "V1_01_micro" / "mav0" /
+                             "state_groundtruth_estimate0" / "data.csv")
+                                .string());
+}
+
+TEST(Pipeline, EurocMicroInitialisesStaticallyAndDriftsLessThan2cm) {
+  VioRunOptions options;
+  const VioRunResult r = RunVioOnEuroc(Micro(), options);
+  ASSERT_GT(r.estimates.size(), 80u);
+  EXPECT_EQ(r.first_init_kind, "static");
+  EXPECT_TRUE(r.lost.empty());
+  const Trajectory est = EstimatesToTrajectory(r.estimates);
+  const Trajectory gt = GroundTruth();
+  // End-to-end drift: the relative motion first -> last frame against the ground truth's.
+  const Rigid3d est_rel = est.pose(0).Inverse() * est.pose(est.size() - 1);
+  const auto gt0 = gt.InterpolateAt(est.t_ns.front());
+  const auto gt1 = gt.InterpolateAt(est.t_ns.back());
+  ASSERT_TRUE(gt0 && gt1);
+  const Rigid3d gt_rel = gt0->Inverse() * *gt1;
+  const double drift = (est_rel.translation - gt_rel.translation).norm();
+  // APE after SE(3) alignment over the clip.
+  eval::SyncedPair synced = eval::Synchronize(gt, est);
+  eval::AlignTrajectory(synced.ref, &synced.est, {.mode = eval::AlignMode::kSe3});
+  std::vector<double> errors;
+  for (size_t i = 0; i < synced.est.size(); ++i)
+    errors.push_back((synced.est.positions[i] - synced.ref.positions[i]).norm());
+  const eval::Statistics ape = eval::ComputeStatistics(errors);
+  std::printf(
+      "V1_01_micro: %zu frames, %s initialisation, ground-truth motion %.3f m, drift "
+      "first->last %.4f m (< 0.02), APE RMSE (SE3) %.4f m (< 0.02), lost intervals %zu; "
+      "median frame %.1f ms\n",
+      r.estimates.size(), r.first_init_kind.c_str(), gt_rel.translation.norm(), drift, ape.rmse,
+      r.lost.size(), r.timing.at("total").median_s * 1e3);
+  EXPECT_LT(drift, 0.02);
+  EXPECT_LT(ape.rmse, 0.02);
+}
+
+TEST(Pipeline, SequentialAndThreadedRunsAreIdentical) {
+  VioRunOptions options;
+  options.max_frames = 40;
+  const VioRunResult a = RunVioOnEuroc(Micro(), options);
+  const VioRunResult b = RunVioOnEuroc(Micro(), options);
+  options.threaded = true;
+  const VioRunResult c = RunVioOnEuroc(Micro(), options);
+  ASSERT_EQ(a.estimates.size(), b.estimates.size());
+  ASSERT_EQ(a.estimates.size(), c.estimates.size());
+  for (size_t i = 0; i < a.estimates.size(); ++i) {
+    EXPECT_EQ(a.estimates[i].state.world_from_body.translation,
+              b.estimates[i].state.world_from_body.translation);
+    EXPECT_EQ(a.estimates[i].state.world_from_body.translation,
+              c.estimates[i].state.world_from_body.translation);
+  }
+}
+
+TEST(Pipeline, StereoOnlyModeRuns) {
+  VioRunOptions options;
+  options.vio.mode = VioMode::kStereo;
+  options.max_frames = 40;
+  const VioRunResult r = RunVioOnEuroc(Micro(), options);
+  ASSERT_GT(r.estimates.size(), 30u);
+  const Trajectory est = EstimatesToTrajectory(r.estimates);
+  const double moved = (est.pose(0).Inverse() * est.pose(est.size() - 1)).translation.norm();
+  std::printf(
+      "stereo-only on V1_01_micro (40 frames): end-to-end motion %.4f m (nearly still: "
+      "< 0.05)\n",
+      moved);
+  EXPECT_LT(moved, 0.05);
+}
+
+}  // namespace
+}  // namespace optinav::vio
+
+namespace optinav::vio {
+namespace {
+
+// Drives the estimator directly with the real clip and injected failures.
+class FailureTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    io::EurocOpenOptions open;
+    open.drop_missing_images = true;
+    ds_ = io::OpenEurocDataset(Micro(), open);
+    rig_ = io::ToStereoRig(ds_.cam0->calibration, ds_.cam1->calibration);
+    for (const io::ImuSample& s : io::ReadImuCsv(ds_.imu_csv))
+      imu_.push_back({s.t_ns, s.gyro_rad_s, s.accel_m_s2});
+    std::map<int64_t, std::string> rights;
+    for (const auto& r : ds_.cam1->images) rights[r.t_ns] = r.path;
+    for (const auto& l : ds_.cam0->images)
+      if (rights.count(l.t_ns)) frames_.push_back({l.t_ns, l.path, rights[l.t_ns]});
+  }
+  struct Frame {
+    int64_t t_ns;
+    std::string left, right;
+  };
+  // Runs frames [0, n) with `black(i)` frames replaced by black images, IMU samples in
+  // [imu_gap_from, imu_gap_to) removed, and `t_shift_ns` added to frames from `shift_from` on.
+  std::vector<std::optional<FrameEstimate>> Run(VioEstimator* e, size_t n,
+                                                const std::function<bool(size_t)>& black,
+                                                int64_t imu_gap_from = 0, int64_t imu_gap_to = 0) {
+    std::vector<std::optional<FrameEstimate>> out;
+    size_t k = 0;
+    const cv::Mat dark(rig_.left.height, rig_.left.width, CV_8UC1, cv::Scalar(0));
+    for (size_t i = 0; i < n && i < frames_.size(); ++i) {
+      const int64_t t = frames_[i].t_ns;
+      for (; k < imu_.size() && imu_[k].t_ns <= t + 20'000'000; ++k)
+        if (imu_[k].t_ns < imu_gap_from || imu_[k].t_ns >= imu_gap_to) e->AddImu(imu_[k]);
+      const bool b = black(i);
+      const cv::Mat l = b ? dark : cv::imread(frames_[i].left, cv::IMREAD_GRAYSCALE);
+      const cv::Mat r = b ? dark : cv::imread(frames_[i].right, cv::IMREAD_GRAYSCALE);
+      out.push_back(e->ProcessFrame(t, l, r));
+    }
+    e->Finish();
+    return out;
+  }
+  io::EurocDataset ds_;
+  camera::StereoRig rig_;
+  std::vector<TimedImuSample> imu_;
+  std::vector<Frame> frames_;
+};
+
+TEST_F(FailureTest, BlackFramesAreALostIntervalThenReinitialisation) {
+  VioEstimator e(rig_, ds_.cam0->calibration.body_from_cam, ImuNoise{}, VioOptions{});
+  // Frames 30..59 (1.5 s) black.
+  const auto out = Run(&e, 80, [](size_t i) { return i >= 30 && i < 60; });
+  ASSERT_EQ(e.lost_intervals().size(), 1u);
+  const LostInterval& lost = e.lost_intervals()[0];
+  std::printf(
+      "black frames 30..59: lost %.2f s .. %.2f s (%s), %d initialisations, last pose "
+      "%s\n",
+      (lost.start_ns - frames_[0].t_ns) * 1e-9, (lost.end_ns - frames_[0].t_ns) * 1e-9,
+      lost.reason.c_str(), e.initializations(), out.back() ? "estimated" : "missing");
+  EXPECT_NE(lost.reason.find("tracked landmarks"), std::string::npos);
+  EXPECT_EQ(lost.end_ns, frames_[60].t_ns);  // re-initialised on the first good frame
+  EXPECT_EQ(e.initializations(), 2);
+  ASSERT_TRUE(out.back().has_value());
+  // The re-initialised track continues from the last good position (nearly still clip).
+  EXPECT_LT(out.back()->state.world_from_body.translation.norm(), 0.05);
+  // The interval starts at the last well-tracked frame, before the black ones.
+  EXPECT_LT(lost.start_ns, frames_[30].t_ns);
+}
+
+TEST_F(FailureTest, ImuGapIsALostInterval) {
+  VioEstimator e(rig_, ds_.cam0->calibration.body_from_cam, ImuNoise{}, VioOptions{});
+  const int64_t gap_from = frames_[30].t_ns - 60'000'000, gap_to = frames_[30].t_ns + 40'000'000;
+  const auto out = Run(
+      &e, 60, [](size_t) { return false; }, gap_from, gap_to);
+  ASSERT_EQ(e.lost_intervals().size(), 1u);
+  std::printf("IMU gap of 0.1 s: lost interval %.3f .. %.3f s '%s'\n",
+              (e.lost_intervals()[0].start_ns - frames_[0].t_ns) * 1e-9,
+              (e.lost_intervals()[0].end_ns - frames_[0].t_ns) * 1e-9,
+              e.lost_intervals()[0].reason.c_str());
+  EXPECT_NE(e.lost_intervals()[0].reason.find("IMU gap"), std::string::npos);
+  EXPECT_TRUE(out.back().has_value());
+}
+
+TEST_F(FailureTest, TimestampJumpAndRepeatedStamps) {
+  VioEstimator e(rig_, ds_.cam0->calibration.body_from_cam, ImuNoise{}, VioOptions{});
+  const cv::Mat l = cv::imread(frames_[20].left, cv::IMREAD_GRAYSCALE);
+  const cv::Mat r = cv::imread(frames_[20].right, cv::IMREAD_GRAYSCALE);
+  Run(&e, 25, [](size_t) { return false; });
+  // The same stamp again: skipped, no crash.
+  EXPECT_FALSE(e.ProcessFrame(frames_[24].t_ns, l, r).has_value());
+  // A jump of 2 s (the IMU continues): a lost interval, then a fresh start.
+  for (const TimedImuSample& s : imu_)
+    if (s.t_ns > frames_[24].t_ns + 20'000'000 && s.t_ns <= frames_[24].t_ns + 2'100'000'000)
+      e.AddImu(s);
+  e.ProcessFrame(frames_[24].t_ns + 2'000'000'000, l, r);
+  e.Finish();
+  ASSERT_EQ(e.lost_intervals().size(), 1u);
+  std::printf("2 s frame jump: lost interval '%s'\n", e.lost_intervals()[0].reason.c_str());
+  EXPECT_NE(e.lost_intervals()[0].reason.find("frame time jump"), std::string::npos);
+  EXPECT_EQ(e.initializations(), 2);
+}
+
+}  // namespace
+}  // namespace optinav::vio
+
+namespace optinav::vio {
+namespace {
+
+TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
+  const std::filesystem::path config =
+      std::filesystem::path(__FILE__).parent_path() / "../../../config/vio_euroc.yaml";
+  const VioOptions file = LoadVioOptions(config.string());
+  const VioOptions d;
+  EXPECT_EQ(file.mode, d.mode);
+  EXPECT_EQ(file.frontend.max_features, d.frontend.max_features);
+  EXPECT_EQ(file.frontend.klt_window_px, d.frontend.klt_window_px);
+  EXPECT_EQ(file.frontend.stereo_window_px, d.frontend.stereo_window_px);
+  EXPECT_EQ(file.frontend.klt_max_iterations, d.frontend.klt_max_iterations);
+  EXPECT_EQ(file.frontend.keyframe_min_parallax_px, d.frontend.keyframe_min_parallax_px);
+  EXPECT_EQ(file.frontend.keyframe_min_tracked_ratio, d.frontend.keyframe_min_tracked_ratio);
+  EXPECT_EQ(file.backend.window_keyframes, d.backend.window_keyframes);
+  EXPECT_EQ(file.backend.max_iterations, d.backend.max_iterations);
+  EXPECT_EQ(file.backend.huber_pixels, d.backend.huber_pixels);
+  EXPECT_EQ(file.backend.prior_accel_bias_sigma, d.backend.prior_accel_bias_sigma);
+  EXPECT_EQ(file.still_max_gyro_std, d.still_max_gyro_std);
+  EXPECT_EQ(file.still_max_accel_std, d.still_max_accel_std);
+  EXPECT_EQ(file.motion_init_tilt_sigma_rad, d.motion_init_tilt_sigma_rad);
+  EXPECT_EQ(file.motion_init_accel_bias_sigma, d.motion_init_accel_bias_sigma);
+  EXPECT_EQ(file.max_imu_gap_s, d.max_imu_gap_s);
+  EXPECT_EQ(file.min_tracked_landmarks, d.min_tracked_landmarks);
+  EXPECT_EQ(file.max_accel_bias, d.max_accel_bias);
+}
+
+TEST(VioConfig, BadConfigsNameTheKey) {
+  const auto dir = optinav::testing::MakeTempDir("vio_config");
+  const std::string unknown =
+      optinav::testing::WriteFile(dir / "a.yaml", "backend:\n  windw_keyframes: 4\n");
+  try {
+    LoadVioOptions(unknown);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("backend.windw_keyframes"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("a.yaml:2"), std::string::npos) << e.what();
+  }
+  const std::string invalid =
+      optinav::testing::WriteFile(dir / "b.yaml", "failure:\n  max_imu_gap_s: -1\n");
+  EXPECT_THROW(LoadVioOptions(invalid), Error);
+  const std::string mode = optinav::testing::WriteFile(dir / "c.yaml", "mode: mono\n");
+  EXPECT_THROW(LoadVioOptions(mode), Error);
+}
+
+}  // namespace
+}  // namespace optinav::vio
