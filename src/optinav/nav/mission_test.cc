@@ -185,17 +185,19 @@ Experiment RunMany(const maploc::MapDatabase& db, const std::string& frames_path
         e.fix_errors.push_back(s.fix_error_m);
       }
     }
-    if (!r.reached || std::getenv("OPTINAV_DEBUG_ALL")) {
-      std::printf("  run %d missed: %s, final distance %.1f m, %zu steps\n", i,
-                  r.end_reason.c_str(), r.final_distance_m, r.steps.size());
-      if (std::getenv("OPTINAV_DEBUG_MISSION")) {
-        for (const StepLog& s : r.steps) {
-          std::printf(
-              "    step %d fix %d/%d %s err %.1f est err %.1f sigma %.1f odo %d glob %d %s\n",
-              s.step, s.fix_found, s.fix_accepted, s.fix_method.c_str(), s.fix_error_m,
-              s.estimate_error_m, s.estimate_sigma_m, s.odometry_ok, s.global_search,
-              s.fix_reason.c_str());
-        }
+    // OPTINAV_DEBUG_MISSION=1 prints every step of every run (for diagnosing a threshold miss).
+    const bool debug = std::getenv("OPTINAV_DEBUG_MISSION") != nullptr;
+    if (!r.reached || debug) {
+      std::printf("  run %d %s: %s, final distance %.1f m, %zu steps\n", i,
+                  r.reached ? "reached" : "missed", r.end_reason.c_str(), r.final_distance_m,
+                  r.steps.size());
+    }
+    if (debug) {
+      for (const StepLog& s : r.steps) {
+        std::printf("    step %d fix %d/%d %s err %.1f est err %.1f sigma %.1f odo %d glob %d %s\n",
+                    s.step, s.fix_found, s.fix_accepted, s.fix_method.c_str(), s.fix_error_m,
+                    s.estimate_error_m, s.estimate_sigma_m, s.odometry_ok, s.global_search,
+                    s.fix_reason.c_str());
       }
     }
   }
