@@ -1,4 +1,5 @@
-// make_ortho SIZE GSD_M OUT.tif [SEED]: writes a procedural orthophoto (src/optinav/sim/synthetic_ortho.h).
+// make_ortho SIZE GSD_M OUT.tif [SEED]: writes a procedural orthophoto
+// (src/optinav/sim/synthetic_ortho.h).
 #include <cstdio>
 #include <cstdlib>
 
@@ -10,6 +11,6 @@ int main(int argc, char** argv) {
     return 2;
   }
   optinav::sim::WriteSyntheticOrtho(argv[3], std::atoi(argv[1]), std::atof(argv[2]),
-                                      argc > 4 ? std::atoi(argv[4]) : 1);
+                                    argc > 4 ? std::atoi(argv[4]) : 1);
   return 0;
 }

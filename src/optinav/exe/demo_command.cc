@@ -83,8 +83,8 @@ Trajectory MakeDriftingEstimate(const Trajectory& gt, unsigned seed) {
   return out;
 }
 
-// A 4.1 x 4.1 km procedural farmland orthophoto at 4 m/px, its map for a 500 m altitude (256x256 frames,
-// 90 deg FOV: 1 km footprint), and missions of >= 2.5 km in 25 % fog.
+// A 4.1 x 4.1 km procedural farmland orthophoto at 4 m/px, its map for a 500 m altitude (256x256
+// frames, 90 deg FOV: 1 km footprint), and missions of >= 2.5 km in 25 % fog.
 int RunDemoMissions(const DemoOptions& opt) {
   namespace fs = std::filesystem;
   const fs::path dir(opt.out_dir);
