@@ -1,7 +1,6 @@
 #include "optinav/exe/cli_common.h"
 
 #include <cmath>
-#include <filesystem>
 #include <string_view>
 #include <vector>
 
@@ -19,22 +18,6 @@ geo::LatLon ParseLatLon(const std::string& text, const std::string& option) {
     throw Error("latitude/longitude out of range: '" + text + "'", {.field = option});
   }
   return {lat, lon};
-}
-
-void PrepareOutputDir(const std::string& dir, bool force, const std::string& option) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  if (fs::exists(dir, ec)) {
-    if (!fs::is_directory(dir, ec)) {
-      throw Error("exists and is not a directory", {.file = dir, .field = option});
-    }
-    if (!force && !fs::is_empty(dir, ec)) {
-      throw Error("output folder exists and is not empty (use --force to write into it)",
-                  {.file = dir, .field = option});
-    }
-  }
-  fs::create_directories(dir, ec);
-  if (ec) throw Error("cannot create output folder: " + ec.message(), {.file = dir});
 }
 
 }  // namespace optinav

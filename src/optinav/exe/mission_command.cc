@@ -216,8 +216,7 @@ int RunMissionExperiment(MissionExperiment& a) {
   std::vector<std::pair<geo::LatLon, geo::LatLon>> legs;
   for (int i = 0; i < a.runs; ++i) {
     if (random_start) {
-      legs.push_back(
-          nav::RandomStartTarget(mission, db, a.min_distance_m, a.margin_m, a.o.seed * 7919 + i));
+      legs.push_back(nav::RandomStartTarget(db, a.min_distance_m, a.margin_m, a.o.seed * 7919 + i));
     } else {
       legs.emplace_back(ParseLatLon(a.start, "--start"), ParseLatLon(a.target, "--target"));
     }
@@ -226,7 +225,7 @@ int RunMissionExperiment(MissionExperiment& a) {
     o.target = legs.back().second;
     if (const std::string e = mission.Check(o); !e.empty()) throw Error(e);
   }
-  PrepareOutputDir(a.out, a.force);
+  io::PrepareOutputDir(a.out, a.force);
   const fs::path out(a.out);
   std::unique_ptr<Background> bg;
   if (a.pictures != "none") bg = std::make_unique<Background>(LoadBackground(db, ortho, 1000));

@@ -383,4 +383,29 @@ void WriteFileAtomically(const std::string& path, const std::string& content) {
   }
 }
 
+void PrepareOutputDir(const std::string& dir, bool force, OnForce on_force,
+                      const std::string& field) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::exists(dir, ec)) {
+    if (!fs::is_directory(dir, ec)) {
+      throw Error("exists and is not a directory", {.file = dir, .field = field});
+    }
+    if (!fs::is_empty(dir, ec)) {
+      if (!force) {
+        throw Error(on_force == OnForce::kClear
+                        ? "output folder exists and is not empty (use --force to replace its "
+                          "contents)"
+                        : "output folder exists and is not empty (use --force to write into it)",
+                    {.file = dir, .field = field});
+      }
+      if (on_force == OnForce::kClear) {
+        for (const auto& entry : fs::directory_iterator(dir)) fs::remove_all(entry.path());
+      }
+    }
+  }
+  fs::create_directories(dir, ec);
+  if (ec) throw Error("cannot create output folder: " + ec.message(), {.file = dir});
+}
+
 }  // namespace optinav::io

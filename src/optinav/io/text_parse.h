@@ -76,4 +76,11 @@ std::string FormatNsAsSeconds(int64_t t_ns);
 // half-written file and an existing file survives a failed write.
 void WriteFileAtomically(const std::string& path, const std::string& content);
 
+// What a forced run does with a non-empty output folder: write into it, or empty it first.
+enum class OnForce { kWriteInto, kClear };
+// Makes `dir` ready for a command's outputs: creates it, or refuses (Error naming `field`) when it
+// exists and is not empty unless `force`.
+void PrepareOutputDir(const std::string& dir, bool force, OnForce on_force = OnForce::kWriteInto,
+                      const std::string& field = "--out");
+
 }  // namespace optinav::io

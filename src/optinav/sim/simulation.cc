@@ -137,22 +137,6 @@ std::string GnssLlhCsv(const std::vector<GnssMeasurement>& g) {
   return s;
 }
 
-void PrepareOutputDir(const std::string& dir, bool force) {
-  std::error_code ec;
-  if (fs::exists(dir, ec)) {
-    if (!fs::is_directory(dir, ec)) throw Error("output exists and is not a folder", {.file = dir});
-    if (!fs::is_empty(dir, ec)) {
-      if (!force) {
-        throw Error("output folder exists and is not empty (use --force to replace its contents)",
-                    {.file = dir, .field = "out"});
-      }
-      for (const auto& entry : fs::directory_iterator(dir)) fs::remove_all(entry.path());
-    }
-  }
-  fs::create_directories(dir, ec);
-  if (ec) throw Error("cannot create the output folder: " + ec.message(), {.file = dir});
-}
-
 struct ImageJob {
   std::string path;
   cv::Mat image;
@@ -258,7 +242,7 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
   std::vector<int64_t> frame_times;
   for (int64_t t = kStartNs; t <= end_ns; t += period_ns) frame_times.push_back(t);
 
-  PrepareOutputDir(options.out_dir, options.force);
+  io::PrepareOutputDir(options.out_dir, options.force, io::OnForce::kClear, "out");
   const fs::path out(options.out_dir);
   const bool euroc = options.format == DatasetFormat::kEuroc;
   const fs::path mav0 = out / "mav0";
