@@ -57,17 +57,16 @@ CameraCalibration ReadCameraCalibration(const std::string& sensor_yaml) {
   if (c.fx <= 0 || c.fy <= 0) {
     throw Error("focal lengths must be positive", {.file = sensor_yaml, .field = "intrinsics"});
   }
-  c.distortion_model = YamlGetOr<std::string>(f, f.root, "distortion_model", "none");
-  if (c.distortion_model == "radtan") c.distortion_model = "radial-tangential";
-  if (c.distortion_model == "equi" || c.distortion_model == "fisheye") {
-    c.distortion_model = "equidistant";
+  camera::DistortionModel model;
+  try {
+    model =
+        camera::ParseDistortionModel(YamlGetOr<std::string>(f, f.root, "distortion_model", "none"));
+  } catch (const Error& e) {
+    throw Error(e.what(), {.file = sensor_yaml, .field = "distortion_model"});
   }
-  if (c.distortion_model == "radial-tangential" || c.distortion_model == "equidistant") {
+  c.distortion_model = camera::DistortionModelName(model);  // canonical name
+  if (model != camera::DistortionModel::kNone) {
     c.distortion = YamlGetNumbers(f, f.root, "distortion_coefficients", 4);
-  } else if (c.distortion_model != "none") {
-    throw Error("unsupported distortion_model '" + c.distortion_model +
-                    "' (radial-tangential, equidistant or none)",
-                {.file = sensor_yaml, .field = "distortion_model"});
   }
   c.rate_hz = YamlGetOr<double>(f, f.root, "rate_hz", 0.0);
   c.body_from_cam = ReadTbs(f);
