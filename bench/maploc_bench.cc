@@ -13,6 +13,7 @@
 #include <benchmark/benchmark.h>
 #include <opencv2/imgproc.hpp>
 
+#include "bench_data.h"
 #include "optinav/maploc/frame_synth.h"
 #include "optinav/maploc/locator.h"
 #include "optinav/sim/synthetic_ortho.h"
@@ -22,16 +23,8 @@ namespace {
 namespace fs = std::filesystem;
 using namespace optinav;
 
-fs::path SharedData() {
-  const char* env = std::getenv("OPTINAV_SHARED_DATA");
-  return env ? fs::path(env) : fs::path(OPTINAV_SHARED_DATA_DEFAULT);
-}
-
-fs::path WorkDir() {
-  const fs::path d = fs::temp_directory_path() / "optinav_bench";
-  fs::create_directories(d);
-  return d;
-}
+using bench::SharedData;
+using bench::WorkDir;
 
 double Median(std::vector<double> v) {
   std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());

@@ -12,6 +12,7 @@
 
 #include <benchmark/benchmark.h>
 
+#include "bench_data.h"
 #include "optinav/nav/mission.h"
 
 namespace {
@@ -19,19 +20,13 @@ namespace {
 namespace fs = std::filesystem;
 using namespace optinav;
 
-fs::path SharedData() {
-  const char* env = std::getenv("OPTINAV_SHARED_DATA");
-  return env ? fs::path(env) : fs::path(OPTINAV_SHARED_DATA_DEFAULT);
-}
-
 std::string Naip(const std::string& year) {
-  return (SharedData() / "geo" / "naip" / ("naip_" + year + ".tif")).string();
+  return (bench::SharedData() / "geo" / "naip" / ("naip_" + year + ".tif")).string();
 }
 
 const maploc::MapDatabase& Map() {
   static const maploc::MapDatabase db = [] {
-    const fs::path dir = fs::temp_directory_path() / "optinav_bench";
-    fs::create_directories(dir);
+    const fs::path dir = bench::WorkDir();
     maploc::MapBuildOptions o;
     o.frame_width = o.frame_height = 256;
     o.hfov_deg = 90;
@@ -59,7 +54,7 @@ void RunMissions(benchmark::State& state, const std::string& year, const std::st
   int reached = 0, runs = 0;
   for (auto _ : state) {
     for (int i = 0; i < 5; ++i) {
-      const auto [start, target] = nav::RandomStartTarget(mission, Map(), 3000, 300, 77 + 1000 * i);
+      const auto [start, target] = nav::RandomStartTarget(Map(), 3000, 300, 77 + 1000 * i);
       nav::MissionOptions o;
       o.start = start;
       o.target = target;

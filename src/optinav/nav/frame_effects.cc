@@ -111,14 +111,16 @@ FrameHook MakeWeatherHook(sim::WeatherSpec spec, uint64_t seed) {
     Rigid3d world_from_cam;
     world_from_cam.rotation = Eigen::Quaterniond(nadir * tilt);
     world_from_cam.translation = v.position_enu;
-    const Eigen::Matrix3d r = world_from_cam.rotation.toRotationMatrix();
+    // The ray (xn, yn, 1) reaches the ground at depth altitude / down, where down, the ray's
+    // downward world component, is linear in xn and yn: -(R.row(2) . ray).
+    const Eigen::Vector3d up_row = world_from_cam.rotation.toRotationMatrix().row(2);
     const double altitude = v.position_enu.z();
     cv::Mat depth(gray.size(), CV_32F);
     for (int y = 0; y < depth.rows; ++y) {
       float* row = depth.ptr<float>(y);
+      const double down_y = -(up_row.y() * (y - cam.cy) / cam.fy + up_row.z());
       for (int x = 0; x < depth.cols; ++x) {
-        const Eigen::Vector3d ray((x - cam.cx) / cam.fx, (y - cam.cy) / cam.fy, 1.0);
-        const double down = -(r * ray).z();
+        const double down = down_y - up_row.x() * (x - cam.cx) / cam.fx;
         row[x] = down > 1e-6 ? static_cast<float>(altitude / down) : 0.0f;  // 0: sky
       }
     }

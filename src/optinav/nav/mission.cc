@@ -399,8 +399,7 @@ MissionResult Mission::Run(const MissionOptions& o) {
   return res;
 }
 
-std::pair<geo::LatLon, geo::LatLon> RandomStartTarget(const Mission& mission,
-                                                      const maploc::MapDatabase& db,
+std::pair<geo::LatLon, geo::LatLon> RandomStartTarget(const maploc::MapDatabase& db,
                                                       double min_distance_m, double margin_m,
                                                       uint64_t seed) {
   std::mt19937_64 rng(seed);
@@ -413,8 +412,7 @@ std::pair<geo::LatLon, geo::LatLon> RandomStartTarget(const Mission& mission,
   };
   for (int i = 0; i < 10000; ++i) {
     const geo::LatLon a = sample(), b = sample();
-    if (geo::GeodesicInverse(a, b).distance_m >= min_distance_m && mission.InsideMap(a, margin_m) &&
-        mission.InsideMap(b, margin_m)) {
+    if (geo::GeodesicInverse(a, b).distance_m >= min_distance_m) {
       return {a, b};
     }
   }

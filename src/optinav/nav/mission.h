@@ -112,8 +112,7 @@ class Mission {
 
 // Random start and target inside the map (margin_m from the edges) at least min_distance_m
 // apart, seeded. Throws Error when the map is too small for that distance.
-std::pair<geo::LatLon, geo::LatLon> RandomStartTarget(const Mission& mission,
-                                                      const maploc::MapDatabase& db,
+std::pair<geo::LatLon, geo::LatLon> RandomStartTarget(const maploc::MapDatabase& db,
                                                       double min_distance_m, double margin_m,
                                                       uint64_t seed);
 

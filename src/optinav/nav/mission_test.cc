@@ -115,7 +115,7 @@ TEST_F(NaipMission, OdometryRecoversFrameMotion) {
 TEST_F(NaipMission, BadMissionsAreRefusedBeforeTheyStart) {
   const geo::GeoRaster raster = geo::GeoRaster::Open(maploc::testmaps::Naip("20090818"));
   Mission mission(*db_, raster);
-  const auto [start, target] = RandomStartTarget(mission, *db_, 3000, 300, 1);
+  const auto [start, target] = RandomStartTarget(*db_, 3000, 300, 1);
   MissionOptions o;
   o.start = start;
   o.target = target;
@@ -141,7 +141,7 @@ TEST_F(NaipMission, BadMissionsAreRefusedBeforeTheyStart) {
   b.speed_m_s = 140;
   b.step_s = 5;
   expect(b, "would not overlap");
-  EXPECT_THROW(RandomStartTarget(mission, *db_, 50000, 300, 1), Error);
+  EXPECT_THROW(RandomStartTarget(*db_, 50000, 300, 1), Error);
 }
 
 struct Experiment {
@@ -159,7 +159,7 @@ Experiment RunMany(const maploc::MapDatabase& db, const std::string& frames_path
   Mission mission(db, frames);
   Experiment e;
   for (int i = 0; i < runs; ++i) {
-    const auto [start, target] = RandomStartTarget(mission, db, 3000, 300, seed + 1000 * i);
+    const auto [start, target] = RandomStartTarget(db, 3000, 300, seed + 1000 * i);
     MissionOptions o;
     o.start = start;
     o.target = target;
@@ -229,28 +229,25 @@ TEST_F(NaipMission, ThirtyRunsOverAnOutdatedMap) {
 
 // The outdated map under the simulator's weather at 50 %: haze by depth (scaled to the altitude)
 // and particles, seeded per run.
-TEST_F(NaipMission, WeatherThirtyRunsOverAnOutdatedMapInFog) {
+void ExpectThirtyRunsInWeather(const maploc::MapDatabase& db, const std::string& weather,
+                               uint64_t seed) {
   const Experiment e =
-      RunMany(*db_, maploc::testmaps::Naip("20170827"), 30, 500, [](MissionOptions& o) {
-        sim::WeatherSpec w = sim::ParseWeather("fog:50");
+      RunMany(db, maploc::testmaps::Naip("20170827"), 30, seed, [&](MissionOptions& o) {
+        sim::WeatherSpec w = sim::ParseWeather(weather);
         w.distance_scale = 0;  // altitude / 50
         o.weather = MakeWeatherHook(w, o.seed);
       });
-  Print("frames 2017 (map 2009), fog 50 %", e, ">= 28/30");
+  Print(("frames 2017 (map 2009), " + weather).c_str(), e, ">= 28/30");
   EXPECT_GE(e.reached, 28);
   EXPECT_LT(Median(e.fix_errors), 10.0);
 }
 
+TEST_F(NaipMission, WeatherThirtyRunsOverAnOutdatedMapInFog) {
+  ExpectThirtyRunsInWeather(*db_, "fog:50", 500);
+}
+
 TEST_F(NaipMission, WeatherThirtyRunsOverAnOutdatedMapInDust) {
-  const Experiment e =
-      RunMany(*db_, maploc::testmaps::Naip("20170827"), 30, 600, [](MissionOptions& o) {
-        sim::WeatherSpec w = sim::ParseWeather("dust:50");
-        w.distance_scale = 0;
-        o.weather = MakeWeatherHook(w, o.seed);
-      });
-  Print("frames 2017 (map 2009), dust 50 %", e, ">= 28/30");
-  EXPECT_GE(e.reached, 28);
-  EXPECT_LT(Median(e.fix_errors), 10.0);
+  ExpectThirtyRunsInWeather(*db_, "dust:50", 600);
 }
 
 // The hook darkens contrast with the intensity and leaves a clear frame alone.
