@@ -20,4 +20,13 @@ geo::LatLon ParseLatLon(const std::string& text, const std::string& option) {
   return {lat, lon};
 }
 
+Eigen::Vector3d ParseTriple(const std::string& text, const std::string& option) {
+  std::vector<std::string_view> f;
+  io::SplitFields(text, ',', &f);
+  if (f.size() != 3) throw Error("expected three numbers A,B,C, got '" + text + "'", {.field = option});
+  Eigen::Vector3d v;
+  for (int i = 0; i < 3; ++i) v[i] = io::ParseFiniteDouble(f[i], {.field = option});
+  return v;
+}
+
 }  // namespace optinav

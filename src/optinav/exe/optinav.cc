@@ -22,6 +22,7 @@ constexpr Command kCommands[] = {
     {"mission", optinav::RunMission,
      "GNSS-denied missions to a target over an orthophoto map (30-run experiments)"},
     {"vio", optinav::RunVio, "stereo visual-inertial odometry on a EuRoC/ASL dataset"},
+    {"bench", optinav::RunBench, "benchmarks: bench gnss (GNSS fusion table on simulated flights)"},
     {"demo", optinav::RunDemo, "run the end-to-end demo on generated data"},
 };
 

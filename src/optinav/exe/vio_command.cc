@@ -2,9 +2,14 @@
 #include <cstdio>
 
 #include <CLI/CLI.hpp>
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "optinav/exe/cli_common.h"
 #include "optinav/exe/commands.h"
+#include "optinav/geo/geo.h"
+#include "optinav/report/geo_export.h"
+#include "optinav/vio/gnss_input.h"
 #include "optinav/io/text_parse.h"
 #include "optinav/io/trajectory_io.h"
 #include "optinav/util/error.h"
@@ -39,7 +44,49 @@ nlohmann::json StatsJson(const vio::VioRunResult& r, const std::string& mode) {
                     {"duration_s", (l.end_ns - l.start_ns) * 1e-9},
                     {"reason", l.reason}});
   j["lost_intervals"] = lost;
+  if (!r.gnss_stats.received) return j;
+  const vio::GnssFusionStats& g = r.gnss_stats;
+  j["gnss"] = {{"received", g.received},
+               {"factors", g.factors},
+               {"rejected", g.rejected},
+               {"alignments", g.alignments},
+               {"aligned_at_s", g.aligned_at_ns ? nlohmann::json(*g.aligned_at_ns * 1e-9)
+                                                : nlohmann::json(nullptr)}};
   return j;
+}
+
+std::string StemOf(const std::string& path) {
+  const size_t dot = path.find_last_of('.');
+  const size_t slash = path.find_last_of('/');
+  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return path;
+  return path.substr(0, dot);
+}
+
+// The rejected samples with their reason.
+std::string RejectedCsv(const std::vector<vio::RejectedGnss>& rejected) {
+  std::string s = "#timestamp [ns], x [m], y [m], z [m], innovation [m], reason\n";
+  for (const vio::RejectedGnss& r : rejected)
+    s += fmt::format("{},{:.4f},{:.4f},{:.4f},{:.3f},\"{}\"\n", r.t_ns, r.position_enu_m.x(),
+                     r.position_enu_m.y(), r.position_enu_m.z(), r.innovation_m, r.reason);
+  return s;
+}
+
+// WGS84 csv and GeoJSON LineString of an ENU trajectory.
+void WriteWgs84(const Trajectory& enu, const Eigen::Vector3d& origin, const std::string& csv_path,
+                const std::string& geojson_path) {
+  const geo::LocalEnu frame(geo::LatLon{origin[0], origin[1]}, origin[2]);
+  std::string csv = "#timestamp [ns], latitude [deg], longitude [deg], height [m]\n";
+  report::GeoLine line;
+  line.name = "optinav vio (GNSS fused)";
+  line.properties["origin"] = fmt::format("{:.9f},{:.9f},{:.3f}", origin[0], origin[1], origin[2]);
+  for (size_t i = 0; i < enu.size(); ++i) {
+    double h = 0;
+    const geo::LatLon ll = frame.FromEnu(enu.pose(i).translation, &h);
+    csv += fmt::format("{},{:.10f},{:.10f},{:.4f}\n", enu.t_ns[i], ll.lat_deg, ll.lon_deg, h);
+    line.points.push_back(ll);
+  }
+  io::WriteFileAtomically(csv_path, csv);
+  io::WriteFileAtomically(geojson_path, report::ToGeoJson({line}, {}));
 }
 
 }  // namespace
@@ -53,6 +100,10 @@ int RunVio(int argc, char** argv) {
                        log_level = "info";
   bool sequential = false;
   size_t max_frames = 0;
+  bool gnss = false;
+  std::string gnss_file, gnss_format = "auto", gnss_norm = "huber", gnss_time = "exact",
+                         gnss_origin, gnss_lever, wgs84_out, geojson_out, rejected_out;
+  double gnss_norm_param = -1, gnss_sigma = -1, gnss_gate = -1, gnss_init_distance = -1;
   app.add_option("--dataset", dataset, "sequence folder (holding mav0/)")->required();
   app.add_option("--format", format, "dataset format: euroc|airsim (airsim: stereo-only)")
       ->capture_default_str();
@@ -67,6 +118,34 @@ int RunVio(int argc, char** argv) {
   app.add_option("--max-frames", max_frames, "process only the first N stereo frames (0: all)");
   app.add_option("--log-level", log_level, "trace|debug|info|warn|error|off")
       ->capture_default_str();
+  app.add_flag("--gnss", gnss,
+               "fuse GNSS positions (stereo-imu); --out is then in the ENU frame of the GNSS "
+               "origin");
+  app.add_option("--gnss-file", gnss_file,
+                 "GNSS csv (default DIR/mav0/gnss0/data.csv): t_ns,x,y,z ENU or "
+                 "t_ns,lat,lon,height, optional sigma column");
+  app.add_option("--gnss-format", gnss_format, "auto|enu|llh (auto: from the header)")
+      ->capture_default_str();
+  app.add_option("--gnss-norm", gnss_norm, "l2|huber|tukey")->capture_default_str();
+  app.add_option("--gnss-norm-param", gnss_norm_param,
+                 "norm parameter in sigmas (default huber 2.5, tukey 5)");
+  app.add_option("--gnss-sigma", gnss_sigma,
+                 "GNSS sigma per axis, m (default: gnss0/sensor.yaml sigma_m, else 1)");
+  app.add_option("--gnss-origin", gnss_origin,
+                 "ENU origin LAT,LON,HEIGHT (default: gnss0/sensor.yaml, else the first fix)");
+  app.add_option("--gnss-lever-arm", gnss_lever,
+                 "antenna in the body frame X,Y,Z, m (default: gnss0/sensor.yaml T_BS)");
+  app.add_option("--gnss-time", gnss_time,
+                 "exact (factor at the sample time) | frame (the document's interpolation to "
+                 "frame times)")
+      ->capture_default_str();
+  app.add_option("--gnss-gate", gnss_gate, "chi-square gate, 3 DoF (default 16.27 = 99.9 %; 0: off)");
+  app.add_option("--gnss-init-distance", gnss_init_distance,
+                 "horizontal distance before the ENU alignment is initialised, m (default 20)");
+  app.add_option("--wgs84-out", wgs84_out, "fused trajectory in WGS84 csv (default TRAJ.wgs84.csv)");
+  app.add_option("--geojson-out", geojson_out, "fused trajectory as GeoJSON (default TRAJ.geojson)");
+  app.add_option("--gnss-rejected-out", rejected_out,
+                 "rejected GNSS samples with their reason (default TRAJ.gnss_rejected.csv)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -90,6 +169,20 @@ int RunVio(int argc, char** argv) {
       return 2;
     }
   }
+  std::optional<vio::GnssNorm> norm = vio::ParseGnssNorm(gnss_norm);
+  std::optional<vio::GnssTimeMode> time_mode = vio::ParseGnssTimeMode(gnss_time);
+  if (!norm) {
+    spdlog::error("--gnss-norm: unknown norm '{}' (l2|huber|tukey)", gnss_norm);
+    return 2;
+  }
+  if (!time_mode) {
+    spdlog::error("--gnss-time: unknown mode '{}' (exact|frame)", gnss_time);
+    return 2;
+  }
+  if (gnss_format != "auto" && gnss_format != "enu" && gnss_format != "llh") {
+    spdlog::error("--gnss-format: unknown format '{}' (auto|enu|llh)", gnss_format);
+    return 2;
+  }
   try {
     vio::VioRunOptions options;
     if (!config.empty()) options.vio = vio::LoadVioOptions(config);
@@ -97,17 +190,92 @@ int RunVio(int argc, char** argv) {
     if (format == "airsim" && !mode) options.vio.mode = vio::VioMode::kStereo;  // no IMU in AirSim
     options.threaded = !sequential;
     options.max_frames = max_frames;
+    std::optional<vio::GnssInput> gnss_input;
+    if (gnss) {
+      if (options.vio.mode != vio::VioMode::kStereoImu || format != "euroc")
+        throw Error("GNSS fusion needs a EuRoC dataset in stereo-imu mode", {.field = "--gnss"});
+      vio::GnssInputOptions in;
+      in.file = gnss_file;
+      if (gnss_format == "enu") in.kind = io::GnssFileKind::kEnu;
+      if (gnss_format == "llh") in.kind = io::GnssFileKind::kLatLonHeight;
+      if (!gnss_origin.empty()) in.origin_lat_lon_height = ParseTriple(gnss_origin, "--gnss-origin");
+      if (!gnss_lever.empty()) in.lever_arm_in_body = ParseTriple(gnss_lever, "--gnss-lever-arm");
+      if (gnss_sigma != -1) {
+        if (!(gnss_sigma > 0))
+          throw Error(fmt::format("must be > 0, got {}", gnss_sigma), {.field = "--gnss-sigma"});
+        in.sigma_m = gnss_sigma;
+      }
+      gnss_input = vio::LoadGnssInput(dataset, in);
+      vio::GnssFusionOptions g;
+      g.norm = *norm;
+      if (gnss_norm_param != -1) {
+        if (!(gnss_norm_param > 0))
+          throw Error(fmt::format("must be > 0, got {}", gnss_norm_param),
+                      {.field = "--gnss-norm-param"});
+        g.norm_parameter = gnss_norm_param;
+      }
+      g.time_mode = *time_mode;
+      g.lever_arm_in_body = gnss_input->lever_arm_in_body;
+      if (gnss_gate != -1) g.gate_chi2 = gnss_gate;
+      if (gnss_init_distance != -1) g.init_min_distance_m = gnss_init_distance;
+      if (const std::string e = g.Check(); !e.empty()) throw Error(e, {.field = "--gnss"});
+      options.gnss = g;
+      options.gnss_samples = gnss_input->samples;
+      spdlog::info("gnss: {} samples from {} (sigma {:.2f} m, norm {}, time {})",
+                   gnss_input->samples.size(), gnss_input->file, gnss_input->default_sigma_m,
+                   gnss_norm, gnss_time);
+    }
     const vio::VioRunResult r = format == "airsim" ? vio::RunVioOnAirsim(dataset, options)
                                                    : vio::RunVioOnEuroc(dataset, options);
     if (r.estimates.empty())
       throw Error("no pose estimated (never initialised: no stereo features or no IMU window)",
                   {.file = dataset});
-    io::WriteTrajectory(out, vio::EstimatesToTrajectory(r.estimates), io::TrajectoryFormat::kTum);
-    if (!camera_out.empty())
-      io::WriteTrajectory(camera_out, vio::EstimatesToTrajectory(r.estimates, r.body_from_cam0),
-                          io::TrajectoryFormat::kTum);
+    Trajectory body = vio::EstimatesToTrajectory(r.estimates);
+    std::string frame = "world";
+    if (gnss) {
+      Trajectory enu = vio::EstimatesToEnuTrajectory(r.estimates);
+      if (enu.empty()) {
+        spdlog::warn(
+            "gnss: the ENU alignment was never initialised (too little horizontal motion or no "
+            "usable GNSS): {} is in the VIO world frame",
+            out);
+      } else {
+        body = std::move(enu);
+        frame = "enu";
+      }
+    }
+    io::WriteTrajectory(out, body, io::TrajectoryFormat::kTum);
+    if (!camera_out.empty()) {
+      const Trajectory c = frame == "enu"
+                               ? vio::EstimatesToEnuTrajectory(r.estimates, r.body_from_cam0)
+                               : vio::EstimatesToTrajectory(r.estimates, r.body_from_cam0);
+      io::WriteTrajectory(camera_out, c, io::TrajectoryFormat::kTum);
+    }
+    if (gnss) {
+      const std::string stem = StemOf(out);
+      if (rejected_out.empty()) rejected_out = stem + ".gnss_rejected.csv";
+      io::WriteFileAtomically(rejected_out, RejectedCsv(r.gnss_rejected));
+      if (frame == "enu" && gnss_input->origin_lat_lon_height) {
+        if (wgs84_out.empty()) wgs84_out = stem + ".wgs84.csv";
+        if (geojson_out.empty()) geojson_out = stem + ".geojson";
+        WriteWgs84(body, *gnss_input->origin_lat_lon_height, wgs84_out, geojson_out);
+      } else if (frame == "enu") {
+        spdlog::warn("gnss: no ENU origin known (give --gnss-origin): no WGS84 output");
+      }
+      const vio::GnssFusionStats& g = r.gnss_stats;
+      std::printf("gnss: %zu samples, %zu factors, %zu rejected (-> %s), %s\n", g.received,
+                  g.factors, g.rejected, rejected_out.c_str(),
+                  frame == "enu" ? ("trajectory in ENU" + (wgs84_out.empty() ? std::string()
+                                                                              : ", WGS84 -> " + wgs84_out))
+                                       .c_str()
+                                 : "trajectory in the VIO world frame (no alignment)");
+    }
     const std::string mode_used = vio::VioModeName(options.vio.mode);
-    if (!stats.empty()) io::WriteFileAtomically(stats, StatsJson(r, mode_used).dump(2) + "\n");
+    if (!stats.empty()) {
+      nlohmann::json j = StatsJson(r, mode_used);
+      j["frame"] = frame;
+      io::WriteFileAtomically(stats, j.dump(2) + "\n");
+    }
     for (const vio::LostInterval& l : r.lost)
       spdlog::warn("lost {:.3f} s .. {:.3f} s: {}", l.start_ns * 1e-9, l.end_ns * 1e-9, l.reason);
     const auto total = r.timing.count("total") ? r.timing.at("total") : TimingSummary{};

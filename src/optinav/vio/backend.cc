@@ -53,6 +53,10 @@ struct SlidingWindowBackend::Landmark {
   int num_states = 0;  // states in the window observing it
 };
 
+Rigid3d WorldAlignment::EnuFromWorld() const {
+  return {Eigen::Quaterniond(Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ())), translation};
+}
+
 std::string BackendOptions::Check() const {
   if (window_keyframes < 2)
     return "window_keyframes must be >= 2, got " + std::to_string(window_keyframes);
@@ -75,7 +79,9 @@ std::string BackendOptions::Check() const {
 SlidingWindowBackend::SlidingWindowBackend(const BackendOptions& options, const RigExtrinsics& rig)
     : options_(options),
       rig_(rig),
-      huber_(std::make_unique<ceres::HuberLoss>(options.huber_pixels / options.pixel_sigma)) {
+      huber_(std::make_unique<ceres::HuberLoss>(options.huber_pixels / options.pixel_sigma)),
+      yaw_held_manifold_(std::make_unique<ceres::SubsetManifold>(kAlignmentSize,
+                                                                 std::vector<int>{3})) {
   const std::string problem = options_.Check();
   OPTINAV_CHECK_MSG(problem.empty(), problem);
 }
@@ -86,6 +92,8 @@ void SlidingWindowBackend::Reset() {
   states_.clear();
   landmarks_.clear();
   timed_factors_.clear();
+  alignment_enabled_ = false;
+  alignment_yaw_held_ = false;
   prior_ = LinearPrior();
   rejected_tracks_.clear();
   stats_ = BackendStats();
@@ -168,6 +176,46 @@ void SlidingWindowBackend::TriangulateNew(State* state) {
     for (int i = 0; i < 3; ++i) landmark.position[i] = (*point)[i];
     landmark.initialized = true;
   }
+}
+
+void SlidingWindowBackend::EnableAlignment(const WorldAlignment& initial,
+                                           const Eigen::Matrix4d& prior_sqrt_info) {
+  OPTINAV_CHECK(initialized());
+  OPTINAV_CHECK(!alignment_enabled_);
+  for (int i = 0; i < 3; ++i) alignment_[i] = initial.translation[i];
+  alignment_[3] = initial.yaw_rad;
+  alignment_enabled_ = true;
+  // Append an independent block to the prior: J = diag(J_old, sqrt_info), r0 = (r0_old, 0).
+  LinearPrior::Block block;
+  block.values = alignment_;
+  block.ambient_size = block.tangent_size = kAlignmentSize;
+  block.manifold = nullptr;
+  block.x0.assign(alignment_, alignment_ + kAlignmentSize);
+  const Eigen::Index rows = prior_.J.rows(), cols = prior_.J.cols();
+  Eigen::MatrixXd J = Eigen::MatrixXd::Zero(rows + kAlignmentSize, cols + kAlignmentSize);
+  J.topLeftCorner(rows, cols) = prior_.J;
+  J.bottomRightCorner(kAlignmentSize, kAlignmentSize) = prior_sqrt_info;
+  Eigen::VectorXd r0 = Eigen::VectorXd::Zero(rows + kAlignmentSize);
+  r0.head(rows) = prior_.r0;
+  prior_.J = std::move(J);
+  prior_.r0 = std::move(r0);
+  prior_.blocks.push_back(block);
+}
+
+WorldAlignment SlidingWindowBackend::alignment() const {
+  WorldAlignment a;
+  a.translation = {alignment_[0], alignment_[1], alignment_[2]};
+  a.yaw_rad = alignment_[3];
+  return a;
+}
+
+std::vector<double*> SlidingWindowBackend::TimedFactorBlocks(const TimedFactor& factor,
+                                                             State* anchor) {
+  if (factor.uses_alignment() && !alignment_enabled_) return {};
+  std::vector<double*> blocks{anchor->pose};
+  if (options_.use_imu) blocks.push_back(anchor->speed_bias);
+  if (factor.uses_alignment()) blocks.push_back(alignment_);
+  return blocks;
 }
 
 void SlidingWindowBackend::AddTimedFactor(std::unique_ptr<TimedFactor> factor) {
@@ -275,6 +323,11 @@ StateEstimate SlidingWindowBackend::Newest() const {
   return states_.back()->Estimate();
 }
 
+int64_t SlidingWindowBackend::oldest_t_ns() const {
+  OPTINAV_CHECK(initialized());
+  return states_.front()->t_ns;
+}
+
 std::vector<std::unique_ptr<ResidualSpec>> SlidingWindowBackend::BuildResiduals(
     const std::function<bool(const State*)>& state_filter,
     const std::function<bool(const Landmark*)>& landmark_filter) const {
@@ -304,10 +357,11 @@ std::vector<std::unique_ptr<ResidualSpec>> SlidingWindowBackend::BuildResiduals(
 const ceres::Manifold* SlidingWindowBackend::ManifoldOf(const double* block) const {
   for (const auto& s : states_)
     if (block == s->pose) return PoseManifold();
-  return nullptr;
+  return nullptr;  // speed-bias, landmarks and the alignment are Euclidean
 }
 
 int SlidingWindowBackend::SizeOf(const double* block) const {
+  if (block == alignment_) return kAlignmentSize;
   for (const auto& s : states_) {
     if (block == s->pose) return kPoseSize;
     if (block == s->speed_bias) return kSpeedBiasSize;
@@ -416,6 +470,7 @@ void SlidingWindowBackend::Optimize() {
                              spec->blocks);
     ++num_observations;
   }
+  if (alignment_enabled_) problem.AddParameterBlock(alignment_, kAlignmentSize);
   if (!prior_.empty()) {
     std::vector<double*> blocks;
     for (const auto& b : prior_.blocks) blocks.push_back(b.values);
@@ -425,14 +480,13 @@ void SlidingWindowBackend::Optimize() {
     ImuPreintegration anchor_to_t;
     State* anchor = AnchorFor(factor->t_ns(), &anchor_to_t);
     if (!anchor) continue;
-    ceres::CostFunction* cost = factor->Create(anchor_to_t, options_.gravity, options_.use_imu);
-    auto* loss = const_cast<ceres::LossFunction*>(factor->loss());
-    if (options_.use_imu) {
-      problem.AddResidualBlock(cost, loss, anchor->pose, anchor->speed_bias);
-    } else {
-      problem.AddResidualBlock(cost, loss, anchor->pose);
-    }
+    const std::vector<double*> blocks = TimedFactorBlocks(*factor, anchor);
+    if (blocks.empty()) continue;
+    problem.AddResidualBlock(factor->Create(anchor_to_t, options_.gravity, options_.use_imu),
+                             const_cast<ceres::LossFunction*>(factor->loss()), blocks);
   }
+  if (alignment_enabled_ && alignment_yaw_held_)
+    problem.SetManifold(alignment_, yaw_held_manifold_.get());
 
   ceres::Solver::Options solver_options = SolverOptions(options_);
   if (num_landmarks > 0) {
@@ -531,11 +585,12 @@ void SlidingWindowBackend::MarginalizeOldest() {
     ImuPreintegration anchor_to_t;
     State* anchor = AnchorFor(factor->t_ns(), &anchor_to_t);
     if (anchor != oldest) continue;
+    std::vector<double*> blocks = TimedFactorBlocks(*factor, anchor);
+    if (blocks.empty()) continue;
     auto spec = std::make_unique<ResidualSpec>();
     spec->cost.reset(factor->Create(anchor_to_t, options_.gravity, options_.use_imu));
     spec->loss = factor->loss();
-    spec->blocks = {oldest->pose};
-    if (options_.use_imu) spec->blocks.push_back(oldest->speed_bias);
+    spec->blocks = std::move(blocks);
     owned.push_back(std::move(spec));
   }
   std::vector<double*> marginalize{oldest->pose};
@@ -546,6 +601,15 @@ void SlidingWindowBackend::MarginalizeOldest() {
   prior_ = Marginalize(
       specs, marginalize, [&](const double* b) { return ManifoldOf(b); },
       [&](const double* b) { return SizeOf(b); });
+  if (alignment_enabled_ && (alignment_walk_translation_ > 0 || alignment_walk_yaw_ > 0)) {
+    const double d = (states_[1]->WorldFromBody().translation - oldest->WorldFromBody().translation)
+                         .norm();
+    Eigen::Vector4d var;
+    var << Eigen::Vector3d::Constant(alignment_walk_translation_ * alignment_walk_translation_ * d),
+        alignment_walk_yaw_ * alignment_walk_yaw_ * d;
+    var = var.cwiseMax(1e-12);
+    prior_ = AddRandomWalk(prior_, alignment_, var.asDiagonal().toDenseMatrix());
+  }
 
   // Remove what left the window.
   for (uint64_t id : leaving_ids) {

@@ -84,7 +84,17 @@ struct StateEstimate {
   ImuBias bias;
 };
 
-// A factor on one state at an arbitrary time (issue 6 plugs GNSS positions in here).
+// The tie between the VIO world (gravity-aligned, free yaw and origin) and a local ENU frame
+// (GNSS): enu_from_world = (rotation about z by yaw, translation). Estimated in the window as one
+// 4-parameter block [tx, ty, tz, yaw] once enabled (EnableAlignment).
+struct WorldAlignment {
+  Eigen::Vector3d translation = Eigen::Vector3d::Zero();
+  double yaw_rad = 0;
+  Rigid3d EnuFromWorld() const;
+};
+constexpr int kAlignmentSize = 4;
+
+// A factor on one state at an arbitrary time (GNSS positions plug in here).
 class TimedFactor {
  public:
   virtual ~TimedFactor() = default;
@@ -98,6 +108,9 @@ class TimedFactor {
                                       bool uses_speed_bias) const = 0;
   // Robust loss (owned by the factor), or nullptr.
   virtual const ceres::LossFunction* loss() const { return nullptr; }
+  // True: the cost takes the world alignment block (4 parameters) after the state's blocks. Such
+  // factors wait until the alignment is enabled.
+  virtual bool uses_alignment() const { return false; }
 };
 
 struct BackendStats {
@@ -133,7 +146,26 @@ class SlidingWindowBackend {
   // previous state).
   void AddTimedFactor(std::unique_ptr<TimedFactor> factor);
 
+  // The world alignment block: enabled with an initial value and a Gaussian prior (upper
+  // triangular square root of its information, over [tx, ty, tz, yaw]); from then on it is
+  // optimised with the window, carried through marginalisation, and cleared by Reset().
+  void EnableAlignment(const WorldAlignment& initial, const Eigen::Matrix4d& prior_sqrt_info);
+  bool alignment_enabled() const { return alignment_enabled_; }
+  WorldAlignment alignment() const;
+  // VIO drift relative to ENU, modelled as a random walk of the alignment with the distance
+  // travelled: at each marginalisation its prior forgets sigma^2 = k^2 * distance (translation
+  // k in m/sqrt(m), yaw in rad/sqrt(m)).
+  void SetAlignmentRandomWalk(double translation_per_sqrt_m, double yaw_per_sqrt_m) {
+    alignment_walk_translation_ = translation_per_sqrt_m;
+    alignment_walk_yaw_ = yaw_per_sqrt_m;
+  }
+  // Holds the alignment yaw constant in the solves (GNSS cannot observe it without motion).
+  void SetAlignmentYawHeld(bool held) { alignment_yaw_held_ = held; }
+  // Timed factors waiting for or used by the window (not yet marginalised).
+  size_t num_timed_factors() const { return timed_factors_.size(); }
+
   StateEstimate Newest() const;
+  int64_t oldest_t_ns() const;
   const BackendStats& stats() const { return stats_; }
   // Track ids the backend rejected as outliers (the frontend may stop tracking them).
   const std::set<uint64_t>& rejected_tracks() const { return rejected_tracks_; }
@@ -157,6 +189,8 @@ class SlidingWindowBackend {
   void SetInitialPrior(State* state, double tilt_sigma_rad, double velocity_sigma_m_s,
                        double accel_bias_sigma);
   State* AnchorFor(int64_t t_ns, ImuPreintegration* anchor_to_t) const;
+  // The blocks of a timed factor anchored at `anchor`, or empty when it cannot be used yet.
+  std::vector<double*> TimedFactorBlocks(const TimedFactor& factor, State* anchor);
   const ceres::Manifold* ManifoldOf(const double* block) const;
   int SizeOf(const double* block) const;
 
@@ -166,6 +200,11 @@ class SlidingWindowBackend {
   std::deque<std::unique_ptr<State>> states_;
   std::map<uint64_t, std::unique_ptr<Landmark>> landmarks_;
   std::vector<std::unique_ptr<TimedFactor>> timed_factors_;
+  double alignment_[kAlignmentSize] = {0, 0, 0, 0};
+  bool alignment_enabled_ = false;
+  bool alignment_yaw_held_ = false;
+  double alignment_walk_translation_ = 0, alignment_walk_yaw_ = 0;
+  std::unique_ptr<ceres::Manifold> yaw_held_manifold_;
   LinearPrior prior_;
   std::set<uint64_t> rejected_tracks_;
   BackendStats stats_;

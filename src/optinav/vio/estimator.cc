@@ -230,6 +230,16 @@ ImuPreintegration VioEstimator::Preintegrate(int64_t t0_ns, int64_t t1_ns,
   return pre;
 }
 
+void VioEstimator::EnableGnss(const GnssFusionOptions& options) {
+  OPTINAV_CHECK_MSG(options_.mode == VioMode::kStereoImu, "GNSS fusion needs stereo-imu mode");
+  gnss_ = std::make_unique<GnssFusion>(options);
+}
+
+void VioEstimator::AddGnss(const GnssSample& sample) {
+  OPTINAV_CHECK_MSG(gnss_ != nullptr, "EnableGnss first");
+  gnss_->AddSample(sample);
+}
+
 void VioEstimator::Lose(int64_t t_ns, const std::string& reason) {
   if (!lost_since_ns_) {
     lost_since_ns_ = last_good_ ? last_good_->t_ns : t_ns;
@@ -237,6 +247,7 @@ void VioEstimator::Lose(int64_t t_ns, const std::string& reason) {
   }
   spdlog::warn("vio: tracking lost at {:.3f} s: {}", t_ns * 1e-9, reason);
   backend_.Reset();
+  if (gnss_) gnss_->OnTrackLost();
   weak_since_s_ = -1;
 }
 
@@ -358,7 +369,8 @@ std::optional<FrameEstimate> VioEstimator::ProcessFrame(int64_t t_ns, const cv::
   if (!backend_.initialized()) {
     if (!TryInitialize(t_ns, features)) return std::nullopt;
     last_good_ = backend_.Newest();
-    return FrameEstimate{*last_good_, true};
+    if (gnss_) gnss_->OnFrame(*last_good_, &backend_);
+    return FrameEstimate{*last_good_, true, gnss_ ? gnss_->alignment() : std::nullopt};
   }
   StateEstimate estimate;
   {
@@ -389,7 +401,8 @@ std::optional<FrameEstimate> VioEstimator::ProcessFrame(int64_t t_ns, const cv::
     weak_since_s_ = -1;
     last_good_ = estimate;  // lost intervals start at the last well-tracked frame
   }
-  return FrameEstimate{estimate, features.keyframe};
+  if (gnss_) gnss_->OnFrame(estimate, &backend_);
+  return FrameEstimate{estimate, features.keyframe, gnss_ ? gnss_->alignment() : std::nullopt};
 }
 
 }  // namespace optinav::vio

@@ -28,6 +28,7 @@
 #include "optinav/util/timer.h"
 #include "optinav/vio/backend.h"
 #include "optinav/vio/frontend.h"
+#include "optinav/vio/gnss_fusion.h"
 
 namespace optinav::vio {
 
@@ -71,8 +72,10 @@ struct LostInterval {
 };
 
 struct FrameEstimate {
-  StateEstimate state;
+  StateEstimate state;  // world frame
   bool keyframe = false;
+  // With GNSS: enu_from_world after this frame's solve (nullopt before the first alignment).
+  std::optional<WorldAlignment> enu_from_world;
 };
 
 class VioEstimator {
@@ -90,6 +93,12 @@ class VioEstimator {
                                             const cv::Mat& right);
   // Closes an open lost interval at the end of the data.
   void Finish();
+
+  // GNSS fusion (stereo-imu mode only): enable before the first frame, then feed samples in
+  // time order, interleaved with the frames (a sample is used once a frame covers its time).
+  void EnableGnss(const GnssFusionOptions& options);
+  void AddGnss(const GnssSample& sample);
+  const GnssFusion* gnss() const { return gnss_.get(); }
 
   const std::vector<LostInterval>& lost_intervals() const { return lost_; }
   TimingStats& timing() { return timing_; }
@@ -118,6 +127,7 @@ class VioEstimator {
   double weak_since_s_ = -1;
   int initializations_ = 0;
   std::string last_init_kind_;
+  std::unique_ptr<GnssFusion> gnss_;
 };
 
 }  // namespace optinav::vio

@@ -165,6 +165,22 @@ class PriorCost : public ceres::CostFunction {
 
 using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
+// H = J^T J, b = J^T r0 -> (J, r0) of a prior (eigen-decomposition; null directions dropped).
+void FactorInformation(const Eigen::MatrixXd& H, const Eigen::VectorXd& b, LinearPrior* prior) {
+  const Eigen::Index n = H.rows();
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(0.5 * (H + H.transpose()));
+  const Eigen::VectorXd l = eig.eigenvalues();
+  const double max_l = std::max(l.maxCoeff(), 1e-12);
+  Eigen::VectorXd sqrt_l(n), inv_sqrt_l(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const bool keep = l[i] > 1e-10 * max_l;
+    sqrt_l[i] = keep ? std::sqrt(l[i]) : 0.0;
+    inv_sqrt_l[i] = keep ? 1.0 / std::sqrt(l[i]) : 0.0;
+  }
+  prior->J = sqrt_l.asDiagonal() * eig.eigenvectors().transpose();
+  prior->r0 = inv_sqrt_l.asDiagonal() * eig.eigenvectors().transpose() * b;
+}
+
 }  // namespace
 
 const ceres::Manifold* PoseManifold() {
@@ -279,20 +295,9 @@ LinearPrior Marginalize(const std::vector<const ResidualSpec*>& residuals,
   Hs = 0.5 * (Hs + Hs.transpose());
   const Eigen::VectorXd bs = b.tail(r_dim) - Hrm * Hmm_inv * b.head(m_dim);
 
-  // Factor Hs = J^T J, bs = J^T r0.
   LinearPrior prior;
   if (r_dim == 0) return prior;
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(Hs);
-  const Eigen::VectorXd l = eig.eigenvalues();
-  const double max_l = std::max(l.maxCoeff(), 1e-12);
-  Eigen::VectorXd sqrt_l(r_dim), inv_sqrt_l(r_dim);
-  for (int i = 0; i < r_dim; ++i) {
-    const bool keep = l[i] > 1e-10 * max_l;
-    sqrt_l[i] = keep ? std::sqrt(l[i]) : 0.0;
-    inv_sqrt_l[i] = keep ? 1.0 / std::sqrt(l[i]) : 0.0;
-  }
-  prior.J = sqrt_l.asDiagonal() * eig.eigenvectors().transpose();
-  prior.r0 = inv_sqrt_l.asDiagonal() * eig.eigenvectors().transpose() * bs;
+  FactorInformation(Hs, bs, &prior);
   for (size_t i = marginalize.size(); i < order.size(); ++i) {
     LinearPrior::Block block;
     block.values = order[i];
@@ -303,6 +308,52 @@ LinearPrior Marginalize(const std::vector<const ResidualSpec*>& residuals,
     prior.blocks.push_back(block);
   }
   return prior;
+}
+
+LinearPrior AddRandomWalk(const LinearPrior& prior, const double* block,
+                          const Eigen::MatrixXd& covariance) {
+  int offset = -1, size = 0, total = 0;
+  for (const LinearPrior::Block& b : prior.blocks) {
+    if (b.values == block) offset = total, size = b.tangent_size;
+    total += b.tangent_size;
+  }
+  if (offset < 0 || prior.empty()) return prior;
+  OPTINAV_CHECK(covariance.rows() == size && covariance.cols() == size);
+  // Information over (x, a): H = J^T J, b = J^T r0. With a' = a + w, eliminating a leaves
+  //   H'xx = Hxx - Hxa M^-1 Hax,  H'xa' = Hxa M^-1 Q^-1,  H'a'a' = Q^-1 - Q^-1 M^-1 Q^-1,
+  //   b'x = bx - Hxa M^-1 ba,     b'a' = Q^-1 M^-1 ba,     M = Haa + Q^-1.
+  const Eigen::MatrixXd H = prior.J.transpose() * prior.J;
+  const Eigen::VectorXd b = prior.J.transpose() * prior.r0;
+  std::vector<int> rest;
+  for (int i = 0; i < total; ++i)
+    if (i < offset || i >= offset + size) rest.push_back(i);
+  const int nx = static_cast<int>(rest.size());
+  Eigen::MatrixXd Hxx(nx, nx), Hxa(nx, size);
+  Eigen::VectorXd bx(nx);
+  for (int i = 0; i < nx; ++i) {
+    bx[i] = b[rest[i]];
+    for (int j = 0; j < nx; ++j) Hxx(i, j) = H(rest[i], rest[j]);
+    for (int j = 0; j < size; ++j) Hxa(i, j) = H(rest[i], offset + j);
+  }
+  const Eigen::MatrixXd Haa = H.block(offset, offset, size, size);
+  const Eigen::VectorXd ba = b.segment(offset, size);
+  const Eigen::MatrixXd Qinv = covariance.inverse();
+  const Eigen::MatrixXd Minv = (Haa + Qinv).inverse();
+  Eigen::MatrixXd Hn(total, total);
+  Eigen::VectorXd bn(total);
+  const Eigen::MatrixXd Hxx_new = Hxx - Hxa * Minv * Hxa.transpose();
+  const Eigen::MatrixXd Hxa_new = Hxa * Minv * Qinv;
+  for (int i = 0; i < nx; ++i) {
+    bn[rest[i]] = bx[i] - (Hxa.row(i) * Minv * ba)(0);
+    for (int j = 0; j < nx; ++j) Hn(rest[i], rest[j]) = Hxx_new(i, j);
+    for (int j = 0; j < size; ++j) Hn(rest[i], offset + j) = Hn(offset + j, rest[i]) = Hxa_new(i, j);
+  }
+  Hn.block(offset, offset, size, size) = Qinv - Qinv * Minv * Qinv;
+  bn.segment(offset, size) = Qinv * Minv * ba;
+  LinearPrior out;
+  out.blocks = prior.blocks;
+  FactorInformation(Hn, bn, &out);
+  return out;
 }
 
 }  // namespace optinav::vio

@@ -76,4 +76,10 @@ LinearPrior Marginalize(const std::vector<const ResidualSpec*>& residuals,
                         const std::function<const ceres::Manifold*(const double*)>& manifold_of,
                         const std::function<int(const double*)>& size_of);
 
+// A random walk on one block of a prior: that block's value is replaced by value + w,
+// w ~ N(0, covariance) (in its tangent space), i.e. the prior forgets part of what it knew about
+// it. Exact in information form: the old block is eliminated from the joint with the new one.
+LinearPrior AddRandomWalk(const LinearPrior& prior, const double* block,
+                          const Eigen::MatrixXd& covariance);
+
 }  // namespace optinav::vio

@@ -21,6 +21,7 @@ struct Packet {
   int64_t t_ns = 0;
   cv::Mat left, right;
   std::vector<TimedImuSample> imu;  // samples to add before the frame
+  std::vector<GnssSample> gnss;     // samples up to the frame time
 };
 
 cv::Mat LoadGrey(const std::string& path, const camera::PinholeCamera& calibration, bool* missing) {
@@ -49,6 +50,23 @@ Trajectory EstimatesToTrajectory(const std::vector<FrameEstimate>& estimates,
   return t;
 }
 
+Trajectory EstimatesToEnuTrajectory(const std::vector<FrameEstimate>& estimates,
+                                    const std::optional<Rigid3d>& body_from_cam) {
+  Trajectory t;
+  const auto first = std::find_if(estimates.begin(), estimates.end(),
+                                  [](const FrameEstimate& e) { return e.enu_from_world.has_value(); });
+  if (first == estimates.end()) return t;
+  t.Reserve(estimates.size(), true);
+  Rigid3d enu_from_world = first->enu_from_world->EnuFromWorld();
+  for (const FrameEstimate& e : estimates) {
+    if (e.enu_from_world) enu_from_world = e.enu_from_world->EnuFromWorld();
+    const Rigid3d world_from_x =
+        body_from_cam ? e.state.world_from_body * *body_from_cam : e.state.world_from_body;
+    t.Add(e.state.t_ns, enu_from_world * world_from_x);
+  }
+  return t;
+}
+
 namespace {
 
 struct StereoPair {
@@ -66,7 +84,7 @@ VioRunResult RunOnPairs(const camera::StereoRig& rig, const Rigid3d& body_from_c
   result.body_from_cam0 = body_from_cam0;
   // The loader: builds packets in order; `emit` returns false to stop.
   auto load = [&](const std::function<bool(Packet)>& emit) {
-    size_t imu_next = 0;
+    size_t imu_next = 0, gnss_next = 0;
     for (const StereoPair& p : pairs) {
       Packet packet;
       packet.t_ns = p.t_ns;
@@ -82,13 +100,18 @@ VioRunResult RunOnPairs(const camera::StereoRig& rig, const Rigid3d& body_from_c
       // IMU up to a little after the frame (interpolation at the frame time needs the next one).
       while (imu_next < imu.size() && imu[imu_next].t_ns <= p.t_ns + 20'000'000)
         packet.imu.push_back(imu[imu_next++]);
+      while (options.gnss && gnss_next < options.gnss_samples.size() &&
+             options.gnss_samples[gnss_next].t_ns <= p.t_ns)
+        packet.gnss.push_back(options.gnss_samples[gnss_next++]);
       if (!emit(std::move(packet))) return;
     }
   };
 
   VioEstimator estimator(rig, body_from_cam0, noise, options.vio);
+  if (options.gnss) estimator.EnableGnss(*options.gnss);
   auto consume = [&](Packet& packet) {
     for (const TimedImuSample& s : packet.imu) estimator.AddImu(s);
+    for (const GnssSample& s : packet.gnss) estimator.AddGnss(s);
     if (packet.left.empty()) return;
     ++result.frames_processed;
     if (auto e = estimator.ProcessFrame(packet.t_ns, packet.left, packet.right)) {
@@ -126,6 +149,10 @@ VioRunResult RunOnPairs(const camera::StereoRig& rig, const Rigid3d& body_from_c
   estimator.Finish();
   result.lost = estimator.lost_intervals();
   result.initializations = estimator.initializations();
+  if (const GnssFusion* gnss = estimator.gnss()) {
+    result.gnss_rejected = gnss->rejected();
+    result.gnss_stats = gnss->stats();
+  }
   for (const std::string& stage : estimator.timing().Stages())
     result.timing[stage] = estimator.timing().Summary(stage);
   return result;
@@ -141,6 +168,8 @@ VioRunResult RunVioOnEuroc(const std::string& dataset_dir, const VioRunOptions& 
   if (!ds.cam0 || !ds.cam1)
     throw Error("VIO needs a stereo pair: mav0/cam0 and mav0/cam1", {.file = ds.mav0_dir});
   const bool use_imu = options.vio.mode == VioMode::kStereoImu;
+  if (options.gnss && !use_imu)
+    throw Error("GNSS fusion needs stereo-imu mode", {.file = ds.mav0_dir, .field = "--gnss"});
   if (use_imu && (ds.imu_csv.empty() || !ds.imu_calibration))
     throw Error("stereo-imu mode needs mav0/imu0 (use --mode stereo without IMU)",
                 {.file = ds.mav0_dir});
@@ -186,6 +215,8 @@ VioRunResult RunVioOnAirsim(const std::string& dataset_dir, const VioRunOptions&
   if (const std::string e = options.vio.Check(); !e.empty()) throw Error(e, {.field = "config"});
   if (options.vio.mode != VioMode::kStereo)
     throw Error("AirSim recordings carry no IMU: use --mode stereo", {.file = dataset_dir});
+  if (options.gnss)
+    throw Error("GNSS fusion needs a EuRoC dataset with IMU", {.file = dataset_dir, .field = "--gnss"});
   io::AirsimReadOptions read;
   read.check_images_exist = !options.skip_missing_images;
   const io::AirsimRecording rec = io::ReadAirsimRecording(dataset_dir, read);

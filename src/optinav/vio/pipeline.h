@@ -21,6 +21,9 @@ namespace optinav::vio {
 
 struct VioRunOptions {
   VioOptions vio;
+  // GNSS fusion (stereo-imu only): the options and the samples (ENU), fed in time order.
+  std::optional<GnssFusionOptions> gnss;
+  std::vector<GnssSample> gnss_samples;
   bool threaded = false;
   size_t max_frames = 0;  // 0: all
   // false: a listed but missing image is an Error; true: the frame is skipped with a warning.
@@ -38,6 +41,9 @@ struct VioRunResult {
   int initializations = 0;
   std::string first_init_kind;
   Rigid3d body_from_cam0;
+  // With GNSS.
+  std::vector<RejectedGnss> gnss_rejected;
+  GnssFusionStats gnss_stats;
 };
 
 // Throws Error (naming file/line/field) on bad input: layout, calibration, unreadable images or
@@ -51,5 +57,10 @@ VioRunResult RunVioOnAirsim(const std::string& dataset_dir, const VioRunOptions&
 // The estimates as a trajectory of the body frame, or of the left camera with body_from_cam.
 Trajectory EstimatesToTrajectory(const std::vector<FrameEstimate>& estimates,
                                  const std::optional<Rigid3d>& body_from_cam = std::nullopt);
+// With GNSS: the estimates in ENU, each through the alignment known right after its frame (what
+// a live system outputs); frames before the first alignment use the first one. Empty when no
+// alignment was ever made.
+Trajectory EstimatesToEnuTrajectory(const std::vector<FrameEstimate>& estimates,
+                                    const std::optional<Rigid3d>& body_from_cam = std::nullopt);
 
 }  // namespace optinav::vio

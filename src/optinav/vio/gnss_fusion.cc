@@ -1,0 +1,439 @@
+#include "optinav/vio/gnss_fusion.h"
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+#include <Eigen/Cholesky>
+#include <ceres/autodiff_cost_function.h>
+#include <fmt/format.h>
+
+#include "optinav/util/error.h"
+#include "optinav/util/logging.h"
+
+namespace optinav::vio {
+
+std::optional<GnssNorm> ParseGnssNorm(const std::string& name) {
+  if (name == "l2") return GnssNorm::kL2;
+  if (name == "huber") return GnssNorm::kHuber;
+  if (name == "tukey") return GnssNorm::kTukey;
+  return std::nullopt;
+}
+
+std::string GnssNormName(GnssNorm norm) {
+  switch (norm) {
+    case GnssNorm::kL2:
+      return "l2";
+    case GnssNorm::kHuber:
+      return "huber";
+    case GnssNorm::kTukey:
+      return "tukey";
+  }
+  return "?";
+}
+
+double DefaultGnssNormParameter(GnssNorm norm) {
+  // Whitened 3-D residual norms of inliers are ~1.6 (chi with 3 DoF): Huber stays quadratic for
+  // nearly all of them; Tukey ignores anything beyond 5 sigma.
+  return norm == GnssNorm::kTukey ? 5.0 : 2.5;
+}
+
+std::optional<GnssTimeMode> ParseGnssTimeMode(const std::string& name) {
+  if (name == "exact") return GnssTimeMode::kExact;
+  if (name == "frame") return GnssTimeMode::kFrameInterpolated;
+  return std::nullopt;
+}
+
+std::string GnssTimeModeName(GnssTimeMode mode) {
+  return mode == GnssTimeMode::kExact ? "exact" : "frame";
+}
+
+std::string GnssFusionOptions::Check() const {
+  if (norm != GnssNorm::kL2 && norm_parameter == 0) return "gnss norm parameter must be > 0";
+  if (!lever_arm_in_body.allFinite()) return "gnss lever arm must be finite";
+  if (!(init_min_distance_m >= 0)) return "init_min_distance_m must be >= 0";
+  if (!(init_max_yaw_sigma_rad > 0)) return "init_max_yaw_sigma_rad must be > 0";
+  if (init_min_samples < 3) return "init_min_samples must be >= 3";
+  if (!std::isfinite(gate_chi2)) return "gate_chi2 must be finite";
+  if (!(yaw_hold_speed_m_s >= 0)) return "yaw_hold_speed_m_s must be >= 0";
+  if (!(drift_fraction >= 0) || !(drift_m_per_sqrt_s >= 0) || !(min_state_sigma_m > 0))
+    return "VIO drift model parameters must be >= 0 (min_state_sigma_m > 0)";
+  if (!(reopen_after_s > 0)) return "reopen_after_s must be > 0";
+  if (!(max_interpolation_gap_s > 0)) return "max_interpolation_gap_s must be > 0";
+  if (!(alignment_walk_m_per_sqrt_m >= 0) || !(alignment_walk_rad_per_sqrt_m >= 0))
+    return "alignment random walk must be >= 0";
+  if (!(relock_sigma_m > 0) || !(relock_yaw_sigma_rad > 0)) return "relock sigmas must be > 0";
+  return "";
+}
+
+namespace {
+
+template <typename T>
+using Vec3 = Eigen::Matrix<T, 3, 1>;
+
+// The antenna at time t from the anchor state i and the IMU preintegrated from i to t, mapped
+// to ENU by the alignment, minus the measurement, over sigma.
+class GnssFunctor {
+ public:
+  GnssFunctor(const ImuPreintegration& pre, const Eigen::Vector3d& gravity,
+              const Eigen::Vector3d& lever, const Eigen::Vector3d& measured, double sigma)
+      : dt_(pre.dt_s()),
+        delta_R_(pre.delta_R()),
+        delta_p_(pre.delta_p()),
+        dR_dbg_(pre.dR_dbg()),
+        dp_dbg_(pre.dp_dbg()),
+        dp_dba_(pre.dp_dba()),
+        bg0_(pre.linearization_bias().gyro),
+        ba0_(pre.linearization_bias().accel),
+        gravity_(gravity),
+        lever_(lever),
+        measured_(measured),
+        inv_sigma_(1.0 / sigma) {}
+
+  template <typename T>
+  bool operator()(const T* pose, const T* sb, const T* align, T* residuals) const {
+    const Eigen::Map<const Vec3<T>> p_i(pose), v_i(sb), bg(sb + 3), ba(sb + 6);
+    const Eigen::Map<const Eigen::Quaternion<T>> q_i(pose + 3);
+    const Vec3<T> dbg = bg - bg0_.cast<T>(), dba = ba - ba0_.cast<T>();
+    const Vec3<T> dp = delta_p_.cast<T>() + dp_dbg_.cast<T>() * dbg + dp_dba_.cast<T>() * dba;
+    const Vec3<T> rot_corr = dR_dbg_.cast<T>() * dbg;
+    T aa[3] = {rot_corr[0], rot_corr[1], rot_corr[2]}, wxyz[4];
+    ceres::AngleAxisToQuaternion(aa, wxyz);
+    const Eigen::Quaternion<T> dR =
+        delta_R_.cast<T>() * Eigen::Quaternion<T>(wxyz[0], wxyz[1], wxyz[2], wxyz[3]);
+    const T dt(dt_);
+    const Vec3<T> p_t = p_i + v_i * dt + T(0.5) * gravity_.cast<T>() * dt * dt + q_i * dp;
+    const Vec3<T> antenna = p_t + (q_i * dR) * lever_.cast<T>();
+    const T c = ceres::cos(align[3]), s = ceres::sin(align[3]);
+    residuals[0] = (c * antenna[0] - s * antenna[1] + align[0] - T(measured_[0])) * T(inv_sigma_);
+    residuals[1] = (s * antenna[0] + c * antenna[1] + align[1] - T(measured_[1])) * T(inv_sigma_);
+    residuals[2] = (antenna[2] + align[2] - T(measured_[2])) * T(inv_sigma_);
+    return true;
+  }
+
+ private:
+  double dt_;
+  Eigen::Quaterniond delta_R_;
+  Eigen::Vector3d delta_p_;
+  Eigen::Matrix3d dR_dbg_, dp_dbg_, dp_dba_;
+  Eigen::Vector3d bg0_, ba0_, gravity_, lever_, measured_;
+  double inv_sigma_;
+};
+
+class GnssFactor : public TimedFactor {
+ public:
+  GnssFactor(const GnssSample& s, const Eigen::Vector3d& lever, const ceres::LossFunction* loss)
+      : sample_(s), lever_(lever), loss_(loss) {}
+  int64_t t_ns() const override { return sample_.t_ns; }
+  ceres::CostFunction* Create(const ImuPreintegration& anchor_to_t, const Eigen::Vector3d& gravity,
+                              bool uses_speed_bias) const override {
+    OPTINAV_CHECK_MSG(uses_speed_bias, "GNSS factors need the IMU (stereo-imu mode)");
+    return new ceres::AutoDiffCostFunction<GnssFunctor, 3, kPoseSize, kSpeedBiasSize,
+                                           kAlignmentSize>(new GnssFunctor(
+        anchor_to_t, gravity, lever_, sample_.position_enu_m, sample_.sigma_m));
+  }
+  const ceres::LossFunction* loss() const override { return loss_; }
+  bool uses_alignment() const override { return true; }
+
+ private:
+  GnssSample sample_;
+  Eigen::Vector3d lever_;
+  const ceres::LossFunction* loss_;
+};
+
+Eigen::Matrix2d Rot2(double yaw) {
+  return Eigen::Rotation2Dd(yaw).toRotationMatrix();
+}
+
+Eigen::Vector3d Apply(const WorldAlignment& a, const Eigen::Vector3d& p_world) {
+  Eigen::Vector3d out;
+  out.head<2>() = Rot2(a.yaw_rad) * p_world.head<2>() + a.translation.head<2>();
+  out.z() = p_world.z() + a.translation.z();
+  return out;
+}
+
+// d(enu)/d[tx, ty, tz, yaw] at p_world.
+Eigen::Matrix<double, 3, 4> AlignmentJacobian(const WorldAlignment& a,
+                                              const Eigen::Vector3d& p_world) {
+  Eigen::Matrix<double, 3, 4> J = Eigen::Matrix<double, 3, 4>::Zero();
+  J.leftCols<3>().setIdentity();
+  const double c = std::cos(a.yaw_rad), s = std::sin(a.yaw_rad);
+  J(0, 3) = -s * p_world.x() - c * p_world.y();
+  J(1, 3) = c * p_world.x() - s * p_world.y();
+  return J;
+}
+
+}  // namespace
+
+struct GnssFusion::Evidence {
+  GnssSample sample;
+  Eigen::Vector3d antenna_world;
+};
+
+GnssFusion::GnssFusion(const GnssFusionOptions& options) : options_(options) {
+  const std::string problem = options_.Check();
+  OPTINAV_CHECK_MSG(problem.empty(), problem);
+  const double k = options_.norm_parameter > 0 ? options_.norm_parameter
+                                               : DefaultGnssNormParameter(options_.norm);
+  if (options_.norm == GnssNorm::kHuber) loss_ = std::make_unique<ceres::HuberLoss>(k);
+  if (options_.norm == GnssNorm::kTukey) loss_ = std::make_unique<ceres::TukeyLoss>(k);
+}
+
+GnssFusion::~GnssFusion() = default;
+
+void GnssFusion::Reject(const GnssSample& s, const std::string& reason, double innovation_m) {
+  rejected_.push_back({s.t_ns, s.position_enu_m, reason, innovation_m});
+  ++stats_.rejected;
+}
+
+void GnssFusion::AddSample(const GnssSample& sample) {
+  ++stats_.received;
+  if (last_sample_ns_ && sample.t_ns <= *last_sample_ns_) {
+    Reject(sample, "timestamp not after the previous sample");
+    return;
+  }
+  if (!sample.position_enu_m.allFinite() || !(sample.sigma_m > 0)) {
+    Reject(sample, "non-finite position or sigma <= 0");
+    return;
+  }
+  last_sample_ns_ = sample.t_ns;
+  pending_.push_back(sample);
+}
+
+void GnssFusion::OnTrackLost() {
+  history_.clear();
+  evidence_.clear();
+  evidence_tried_ = 0;
+  frames_waiting_.clear();
+  last_ready_.reset();
+  rejecting_since_ns_.reset();
+  relock_ = alignment_.has_value();
+}
+
+std::optional<Rigid3d> GnssFusion::WorldPoseAt(int64_t t_ns) const {
+  if (history_.empty() || t_ns < history_.front().t_ns || t_ns > history_.back().t_ns)
+    return std::nullopt;
+  for (size_t k = history_.size(); k-- > 0;) {
+    const StateEstimate& a = history_[k];
+    if (a.t_ns > t_ns) continue;
+    if (a.t_ns == t_ns || k + 1 == history_.size()) return a.world_from_body;
+    const StateEstimate& b = history_[k + 1];
+    const double u = static_cast<double>(t_ns - a.t_ns) / static_cast<double>(b.t_ns - a.t_ns);
+    return Rigid3d(a.world_from_body.rotation.slerp(u, b.world_from_body.rotation),
+                   (1 - u) * a.world_from_body.translation + u * b.world_from_body.translation);
+  }
+  return std::nullopt;
+}
+
+void GnssFusion::OnFrame(const StateEstimate& estimate, SlidingWindowBackend* backend) {
+  // The model of the VIO position uncertainty grows with the motion since the previous frame.
+  if (!history_.empty()) {
+    const double dist =
+        (estimate.world_from_body.translation - history_.back().world_from_body.translation)
+            .norm();
+    const double dt = (estimate.t_ns - history_.back().t_ns) * 1e-9;
+    state_var_m2_ += std::pow(options_.drift_fraction * dist, 2) +
+                     options_.drift_m_per_sqrt_s * options_.drift_m_per_sqrt_s * dt;
+  }
+  history_.push_back(estimate);
+  while (history_.size() > 2 && history_[1].t_ns < estimate.t_ns - 2'000'000'000) history_.pop_front();
+
+  // After a VIO re-initialisation the world frame continues from the last good pose: the old
+  // alignment holds approximately; re-lock it with a loose prior and a wide gate.
+  if (relock_ && alignment_ && backend->initialized() && !backend->alignment_enabled()) {
+    Eigen::Matrix4d sqrt_info = Eigen::Matrix4d::Zero();
+    sqrt_info.diagonal() << Eigen::Vector3d::Constant(1.0 / options_.relock_sigma_m),
+        1.0 / options_.relock_yaw_sigma_rad;
+    backend->EnableAlignment(*alignment_, sqrt_info);
+    backend->SetAlignmentRandomWalk(options_.alignment_walk_m_per_sqrt_m,
+                                    options_.alignment_walk_rad_per_sqrt_m);
+    state_var_m2_ = options_.relock_sigma_m * options_.relock_sigma_m;
+    relock_ = false;
+    ++stats_.alignments;
+    spdlog::info("gnss: alignment re-locked after a VIO re-initialisation at {:.3f} s",
+                 estimate.t_ns * 1e-9);
+  }
+  if (backend->alignment_enabled()) {
+    alignment_ = backend->alignment();
+    backend->SetAlignmentYawHeld(estimate.velocity.head<2>().norm() <
+                                 options_.yaw_hold_speed_m_s);
+  }
+
+  // Samples up to this frame are ready.
+  while (!pending_.empty() && pending_.front().t_ns <= estimate.t_ns) {
+    const GnssSample s = pending_.front();
+    pending_.pop_front();
+    if (options_.time_mode == GnssTimeMode::kExact) {
+      Use(s, backend);
+      continue;
+    }
+    // The document's baseline: measurements linearly interpolated to the frame times between
+    // this sample and the previous one.
+    if (last_ready_ && (s.t_ns - last_ready_->t_ns) * 1e-9 <= options_.max_interpolation_gap_s) {
+      for (int64_t t : frames_waiting_) {
+        if (t < last_ready_->t_ns || t > s.t_ns) continue;
+        const double u =
+            static_cast<double>(t - last_ready_->t_ns) / static_cast<double>(s.t_ns - last_ready_->t_ns);
+        GnssSample at_frame;
+        at_frame.t_ns = t;
+        at_frame.position_enu_m = (1 - u) * last_ready_->position_enu_m + u * s.position_enu_m;
+        at_frame.sigma_m = (1 - u) * last_ready_->sigma_m + u * s.sigma_m;
+        Use(at_frame, backend);
+      }
+    }
+    std::erase_if(frames_waiting_, [&](int64_t t) { return t <= s.t_ns; });
+    last_ready_ = s;
+  }
+  if (options_.time_mode == GnssTimeMode::kFrameInterpolated) frames_waiting_.push_back(estimate.t_ns);
+  if (!backend->alignment_enabled() && !relock_) TryInitialize(backend);
+}
+
+void GnssFusion::Use(const GnssSample& s, SlidingWindowBackend* backend) {
+  const std::optional<Rigid3d> pose = WorldPoseAt(s.t_ns);
+  if (!pose) {
+    Reject(s, "no VIO pose at its time (before the first frame or while tracking is lost)");
+    return;
+  }
+  const Eigen::Vector3d antenna = pose->translation + pose->rotation * options_.lever_arm_in_body;
+  if (!backend->alignment_enabled()) {
+    if (relock_) {
+      Reject(s, "VIO re-initialising");
+      return;
+    }
+    evidence_.push_back({s, antenna});
+    return;
+  }
+  // Chi-square gate on the innovation.
+  const Eigen::Vector3d innovation = s.position_enu_m - Apply(*alignment_, antenna);
+  const double var = s.sigma_m * s.sigma_m + state_var_m2_;
+  const double d2 = innovation.squaredNorm() / var;
+  if (options_.gate_chi2 > 0 && d2 > options_.gate_chi2) {
+    Reject(s, fmt::format("gate: innovation {:.2f} m, chi2 {:.1f} > {:.2f}", innovation.norm(), d2,
+                          options_.gate_chi2),
+           innovation.norm());
+    if (!rejecting_since_ns_) rejecting_since_ns_ = s.t_ns;
+    if ((s.t_ns - *rejecting_since_ns_) * 1e-9 > options_.reopen_after_s) {
+      // Everything rejected for a while: the VIO drifted more than modelled. Widen the gate.
+      state_var_m2_ *= 4;
+      rejecting_since_ns_ = s.t_ns;
+      spdlog::info("gnss: {:.1f} s of rejected samples at {:.3f} s, gate widened to {:.1f} m",
+                   options_.reopen_after_s, s.t_ns * 1e-9, std::sqrt(state_var_m2_));
+    }
+    return;
+  }
+  rejecting_since_ns_.reset();
+  AddFactor(s, backend);
+  state_var_m2_ = std::max(1.0 / (1.0 / state_var_m2_ + 1.0 / (s.sigma_m * s.sigma_m)),
+                           options_.min_state_sigma_m * options_.min_state_sigma_m);
+}
+
+void GnssFusion::AddFactor(const GnssSample& s, SlidingWindowBackend* backend) {
+  backend->AddTimedFactor(std::make_unique<GnssFactor>(s, options_.lever_arm_in_body, loss_.get()));
+  ++stats_.factors;
+}
+
+void GnssFusion::TryInitialize(SlidingWindowBackend* backend) {
+  const int n = static_cast<int>(evidence_.size());
+  if (n < options_.init_min_samples || evidence_.size() == evidence_tried_) return;
+  evidence_tried_ = evidence_.size();
+  double span = 0;
+  for (const Evidence& e : evidence_)
+    span = std::max(span, (e.antenna_world - evidence_.front().antenna_world).head<2>().norm());
+  if (span < options_.init_min_distance_m) return;
+
+  // RANSAC over pairs of samples far enough apart (fixed seed: deterministic).
+  const double gate = options_.gate_chi2 > 0 ? std::sqrt(options_.gate_chi2) : 4.0;
+  auto inliers_of = [&](const WorldAlignment& a) {
+    std::vector<int> in;
+    for (int i = 0; i < n; ++i) {
+      const Evidence& e = evidence_[i];
+      if ((e.sample.position_enu_m - Apply(a, e.antenna_world)).norm() < gate * e.sample.sigma_m)
+        in.push_back(i);
+    }
+    return in;
+  };
+  std::mt19937 rng(12345);
+  std::uniform_int_distribution<int> pick(0, n - 1);
+  std::vector<int> best;
+  WorldAlignment best_a;
+  for (int trial = 0, tried = 0; trial < 2000 && tried < 300; ++trial) {
+    const int i = pick(rng), j = pick(rng);
+    const Eigen::Vector2d dw = (evidence_[j].antenna_world - evidence_[i].antenna_world).head<2>();
+    const Eigen::Vector2d de =
+        (evidence_[j].sample.position_enu_m - evidence_[i].sample.position_enu_m).head<2>();
+    if (dw.norm() < 0.5 * span) continue;
+    ++tried;
+    WorldAlignment a;
+    a.yaw_rad = std::atan2(de.y(), de.x()) - std::atan2(dw.y(), dw.x());
+    a.translation = 0.5 * (evidence_[i].sample.position_enu_m + evidence_[j].sample.position_enu_m) -
+                    Apply(a, 0.5 * (evidence_[i].antenna_world + evidence_[j].antenna_world));
+    std::vector<int> in = inliers_of(a);
+    if (in.size() > best.size()) best = std::move(in), best_a = a;
+  }
+  if (static_cast<int>(best.size()) < std::max(options_.init_min_samples / 2, 3)) return;
+
+  // Weighted Gauss-Newton on the inliers (twice: re-select inliers with the refined estimate).
+  WorldAlignment a = best_a;
+  Eigen::Matrix4d info = Eigen::Matrix4d::Zero();
+  for (int round = 0; round < 2; ++round) {
+    for (int it = 0; it < 5; ++it) {
+      info.setZero();
+      Eigen::Vector4d g = Eigen::Vector4d::Zero();
+      for (int i : best) {
+        const Evidence& e = evidence_[i];
+        const Eigen::Matrix<double, 3, 4> J = AlignmentJacobian(a, e.antenna_world);
+        const Eigen::Vector3d r = Apply(a, e.antenna_world) - e.sample.position_enu_m;
+        const double w = 1.0 / (e.sample.sigma_m * e.sample.sigma_m);
+        info += w * J.transpose() * J;
+        g += w * J.transpose() * r;
+      }
+      const Eigen::Vector4d step = info.ldlt().solve(-g);
+      if (!step.allFinite()) return;
+      a.translation += step.head<3>();
+      a.yaw_rad += step[3];
+    }
+    best = inliers_of(a);
+  }
+  const Eigen::Matrix4d cov = info.inverse();
+  if (!(std::sqrt(cov(3, 3)) <= options_.init_max_yaw_sigma_rad)) return;  // wait for more motion
+  const size_t before = rejected_.size();
+  std::vector<bool> inlier(n, false);
+  for (int i : best) inlier[i] = true;
+  for (int i = 0; i < n; ++i)
+    if (!inlier[i]) Reject(evidence_[i].sample, "outlier of the alignment initialisation");
+
+  // Samples older than the window go into the alignment's prior; the others become factors.
+  const int64_t window_start = backend->oldest_t_ns();
+  Eigen::Matrix4d prior_info = Eigen::Matrix4d::Zero();
+  for (int i : best) {
+    const Evidence& e = evidence_[i];
+    if (e.sample.t_ns >= window_start) continue;
+    const Eigen::Matrix<double, 3, 4> J = AlignmentJacobian(a, e.antenna_world);
+    prior_info += J.transpose() * J / (e.sample.sigma_m * e.sample.sigma_m);
+  }
+  // A weak regulariser keeps the prior full rank (yaw within pi, translation within 1 km).
+  prior_info.diagonal() += Eigen::Vector4d(1e-6, 1e-6, 1e-6, 1.0 / (M_PI * M_PI));
+  const Eigen::Matrix4d sqrt_info = prior_info.llt().matrixU();
+  backend->EnableAlignment(a, sqrt_info);
+  backend->SetAlignmentRandomWalk(options_.alignment_walk_m_per_sqrt_m,
+                                  options_.alignment_walk_rad_per_sqrt_m);
+  alignment_ = a;
+  for (int i : best)
+    if (evidence_[i].sample.t_ns >= window_start) AddFactor(evidence_[i].sample, backend);
+  // The gate starts from the alignment's uncertainty at the newest position.
+  const Eigen::Matrix<double, 3, 4> J = AlignmentJacobian(a, history_.back().world_from_body.translation);
+  state_var_m2_ = std::max((J * cov * J.transpose()).trace() / 3.0,
+                           options_.min_state_sigma_m * options_.min_state_sigma_m);
+  if (!stats_.aligned_at_ns) stats_.aligned_at_ns = history_.back().t_ns;
+  ++stats_.alignments;
+  spdlog::info(
+      "gnss: ENU alignment at {:.3f} s from {} of {} samples over {:.1f} m: yaw {:.2f} deg "
+      "(sigma {:.2f}), translation ({:.2f}, {:.2f}, {:.2f}) m; {} outlier(s)",
+      history_.back().t_ns * 1e-9, best.size(), n, span, a.yaw_rad * 180 / M_PI,
+      std::sqrt(cov(3, 3)) * 180 / M_PI, a.translation.x(), a.translation.y(), a.translation.z(),
+      rejected_.size() - before);
+  evidence_.clear();
+  evidence_tried_ = 0;
+}
+
+}  // namespace optinav::vio
