@@ -58,6 +58,7 @@ std::string GnssFusionOptions::Check() const {
   if (!(yaw_hold_speed_m_s >= 0)) return "yaw_hold_speed_m_s must be >= 0";
   if (!(drift_fraction >= 0) || !(drift_m_per_sqrt_s >= 0) || !(min_state_sigma_m > 0))
     return "VIO drift model parameters must be >= 0 (min_state_sigma_m > 0)";
+  if (!(model_sigma_m >= 0)) return "model_sigma_m must be >= 0";
   if (!(reopen_after_s > 0)) return "reopen_after_s must be > 0";
   if (!(max_interpolation_gap_s > 0)) return "max_interpolation_gap_s must be > 0";
   if (!(alignment_walk_m_per_sqrt_m >= 0) || !(alignment_walk_rad_per_sqrt_m >= 0))
@@ -197,7 +198,9 @@ void GnssFusion::AddSample(const GnssSample& sample) {
     return;
   }
   last_sample_ns_ = sample.t_ns;
-  pending_.push_back(sample);
+  GnssSample s = sample;
+  s.sigma_m = std::hypot(sample.sigma_m, options_.model_sigma_m);
+  pending_.push_back(s);
 }
 
 void GnssFusion::OnTrackLost() {
@@ -343,11 +346,15 @@ void GnssFusion::TryInitialize(SlidingWindowBackend* backend) {
 
   // RANSAC over pairs of samples far enough apart (fixed seed: deterministic).
   const double gate = options_.gate_chi2 > 0 ? std::sqrt(options_.gate_chi2) : 4.0;
+  // The VIO's own error across the span adds to each sample's sigma here.
+  const double vio_var = std::pow(options_.drift_fraction * span, 2);
+  auto var_of = [&](const Evidence& e) { return e.sample.sigma_m * e.sample.sigma_m + vio_var; };
   auto inliers_of = [&](const WorldAlignment& a) {
     std::vector<int> in;
     for (int i = 0; i < n; ++i) {
       const Evidence& e = evidence_[i];
-      if ((e.sample.position_enu_m - Apply(a, e.antenna_world)).norm() < gate * e.sample.sigma_m)
+      if ((e.sample.position_enu_m - Apply(a, e.antenna_world)).squaredNorm() <
+          gate * gate * var_of(e))
         in.push_back(i);
     }
     return in;
@@ -383,7 +390,7 @@ void GnssFusion::TryInitialize(SlidingWindowBackend* backend) {
         const Evidence& e = evidence_[i];
         const Eigen::Matrix<double, 3, 4> J = AlignmentJacobian(a, e.antenna_world);
         const Eigen::Vector3d r = Apply(a, e.antenna_world) - e.sample.position_enu_m;
-        const double w = 1.0 / (e.sample.sigma_m * e.sample.sigma_m);
+        const double w = 1.0 / var_of(e);
         info += w * J.transpose() * J;
         g += w * J.transpose() * r;
       }

@@ -65,7 +65,10 @@ struct GnssFusionOptions {
   double yaw_hold_speed_m_s = 1.0;
   double drift_fraction = 0.01;         // VIO position sigma growth per metre travelled
   double drift_m_per_sqrt_s = 0.05;     // ... and per sqrt(second)
-  double min_state_sigma_m = 0.1;       // floor of the modelled VIO position sigma
+  double min_state_sigma_m = 0.25;      // floor of the modelled VIO position sigma
+  // Added in quadrature to every sample's sigma (factors, gate, initialisation): what the GNSS
+  // sigma does not cover (VIO interpolation between states, time sync, linearisation).
+  double model_sigma_m = 0.15;
   double reopen_after_s = 5.0;          // rejections for this long widen the gate (x2 sigma)
   double max_interpolation_gap_s = 1.0;  // frame-interpolated mode: larger gaps are outages
   // VIO drift relative to ENU as a random walk of the alignment per metre travelled (see
