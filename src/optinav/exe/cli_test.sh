@@ -257,6 +257,31 @@ expect_ok "vio IMU that stops" "$BIN" vio --dataset "$WORK/clip" --out "$WORK/x.
 grep -q 'IMU gap' "$WORK/stop.json" || fail "vio: IMU stop not reported as a lost interval"
 [[ $(grep -vc '^#' "$WORK/x.tum") -ge 20 ]] || fail "vio: poses before the IMU stop missing"
 
+# --- GNSS fusion inputs (the micro clip barely moves: the ENU alignment is never made).
+awk -F, 'NR > 1 && NR % 40 == 2 { printf "%s,47.3%05d,8.5,400,2.0\n", $1, NR }' \
+  "$MICRO/mav0/imu0/data.csv" | { echo "#timestamp [ns],latitude [deg],longitude [deg],height [m],sigma [m]"; cat; } \
+  > "$WORK/gnss_llh.csv"
+expect_ok "vio gnss llh file" "$BIN" vio --dataset "$MICRO" --gnss --gnss-file "$WORK/gnss_llh.csv" \
+  --out "$WORK/g.tum" --stats "$WORK/g.json" --max-frames 20
+grep -q "never initialised" "$WORK/err.txt" || fail "vio gnss: missing alignment not reported"
+[[ -f "$WORK/g.gnss_rejected.csv" ]] || fail "vio gnss: no rejected-samples file"
+grep -q '"gnss"' "$WORK/g.json" || fail "vio gnss: stats lack the gnss block"
+expect_error "vio gnss missing file" "GNSS file not found" "$BIN" vio --dataset "$MICRO" --gnss --out "$WORK/x.tum"
+expect_error "vio gnss in stereo mode" "stereo-imu" "$BIN" vio --dataset "$MICRO" --gnss \
+  --gnss-file "$WORK/gnss_llh.csv" --mode stereo --out "$WORK/x.tum"
+expect_error "vio gnss bad norm" "unknown norm 'cauchy'" "$BIN" vio --dataset "$MICRO" --gnss \
+  --gnss-file "$WORK/gnss_llh.csv" --gnss-norm cauchy --out "$WORK/x.tum"
+expect_error "vio gnss bad origin" "--gnss-origin" "$BIN" vio --dataset "$MICRO" --gnss \
+  --gnss-file "$WORK/gnss_llh.csv" --gnss-origin 95,8,400 --out "$WORK/x.tum"
+expect_error "vio gnss zero sigma" "--gnss-sigma" "$BIN" vio --dataset "$MICRO" --gnss \
+  --gnss-file "$WORK/gnss_llh.csv" --gnss-sigma 0 --out "$WORK/x.tum"
+printf '#timestamp [ns],x,y,z\n1403715273262142976,0,0,0\n1403715273362142976,0,0,0\n1403715273312142976,0,0,0\n' > "$WORK/g_bad.csv"
+expect_error "vio gnss unsorted stamps" "g_bad.csv:4" "$BIN" vio --dataset "$MICRO" --gnss \
+  --gnss-file "$WORK/g_bad.csv" --out "$WORK/x.tum"
+printf '#timestamp [ns],x,y,z\n' > "$WORK/g_empty.csv"
+expect_error "vio gnss empty file" "no usable GNSS sample" "$BIN" vio --dataset "$MICRO" --gnss \
+  --gnss-file "$WORK/g_empty.csv" --out "$WORK/x.tum"
+
 # --- The demo.
 expect_ok "demo" "$BIN" demo --out "$WORK/demo" --duration 60
 for f in groundtruth.csv estimate.tum ape_se3.json ape_se3.svg rpe_10m.json; do

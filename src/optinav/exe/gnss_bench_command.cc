@@ -32,17 +32,19 @@ namespace {
 
 struct Condition {
   std::string name;
-  double sigma_m = 0;       // noise added
+  double sigma_m = 0;         // noise added
   double factor_sigma_m = 0;  // sigma the fusion is told
   double outlier_fraction = 0;
   double outage_s = 0;  // duration, from outage_start_s of the sequence
 };
 
 const std::vector<Condition>& Conditions() {
-  static const std::vector<Condition> c = {
-      {"ideal", 0.0, 0.05, 0, 0},          {"sigma 0.5 m", 0.5, 0.5, 0, 0},
-      {"sigma 1.5 m", 1.5, 1.5, 0, 0},     {"sigma 3 m", 3.0, 3.0, 0, 0},
-      {"3 m + 10 % outliers", 3.0, 3.0, 0.10, 0}, {"3 m + 60 s outage", 3.0, 3.0, 0, 60.0}};
+  static const std::vector<Condition> c = {{"ideal", 0.0, 0.05, 0, 0},
+                                           {"sigma 0.5 m", 0.5, 0.5, 0, 0},
+                                           {"sigma 1.5 m", 1.5, 1.5, 0, 0},
+                                           {"sigma 3 m", 3.0, 3.0, 0, 0},
+                                           {"3 m + 10 % outliers", 3.0, 3.0, 0.10, 0},
+                                           {"3 m + 60 s outage", 3.0, 3.0, 0, 60.0}};
   return c;
 }
 
@@ -73,7 +75,7 @@ struct RunResult {
 // The room flight: a loop of a 12 x 8 m room at 1.5 - 3 m, flown four times.
 void WriteRoomWaypoints(const std::string& path) {
   std::string s = "# x y altitude (m): a EuRoC-like room flight\n";
-  const double pts[][3] = {{0, 0, 1.5}, {5, 1, 2.0}, {6, 4, 2.5}, {2, 6, 3.0},
+  const double pts[][3] = {{0, 0, 1.5},  {5, 1, 2.0},  {6, 4, 2.5},   {2, 6, 3.0},
                            {-4, 5, 2.5}, {-6, 1, 2.0}, {-3, -2, 1.8}, {1, -1, 1.6}};
   for (int lap = 0; lap < 5; ++lap)
     for (const auto& p : pts) s += fmt::format("{} {} {}\n", p[0], p[1], p[2]);
@@ -154,8 +156,8 @@ double ErrorAtTime(const std::vector<std::pair<double, double>>& series, double 
   return NAN;
 }
 
-RunResult RunOne(const Sequence& seq, const Condition* condition, const std::string& norm,
-                 int seed, const Trajectory* vio_alone) {
+RunResult RunOne(const Sequence& seq, const Condition* condition, const std::string& norm, int seed,
+                 const Trajectory* vio_alone) {
   RunResult r;
   r.sequence = seq.name;
   r.condition = condition ? condition->name : "no GNSS";
@@ -192,7 +194,8 @@ RunResult RunOne(const Sequence& seq, const Condition* condition, const std::str
       a.mode = eval::AlignMode::kSe3;
       eval::AlignTrajectory(synced.ref, &aligned, a);
       r.ate_se3 =
-          eval::ComputeStatistics(eval::ComputeApe(synced.ref, aligned, eval::PoseRelation::kTranslation).errors)
+          eval::ComputeStatistics(
+              eval::ComputeApe(synced.ref, aligned, eval::PoseRelation::kTranslation).errors)
               .rmse;
     }
     r.ok = true;
@@ -206,7 +209,8 @@ RunResult RunOne(const Sequence& seq, const Condition* condition, const std::str
         if (synced.est.t_ns[i] - synced.est.t_ns[0] <= 5'000'000'000) a.n_to_align = i + 1;
       eval::AlignTrajectory(synced.ref, &global, a);
     }
-    const eval::ErrorSeries e = eval::ComputeApe(synced.ref, global, eval::PoseRelation::kTranslation);
+    const eval::ErrorSeries e =
+        eval::ComputeApe(synced.ref, global, eval::PoseRelation::kTranslation);
     r.global_rmse = eval::ComputeStatistics(e.errors).rmse;
     const int64_t t0 = seq.truth.t_ns.front();
     for (size_t i = 0; i < e.errors.size(); ++i)
@@ -228,7 +232,8 @@ RunResult RunOne(const Sequence& seq, const Condition* condition, const std::str
         const auto g0 = seq.truth.InterpolateAt(t0 + static_cast<int64_t>(ts * 1e9));
         const auto g1 = seq.truth.InterpolateAt(t0 + static_cast<int64_t>(te * 1e9));
         if (a0 && a1 && g0 && g1)
-          r.vio_drift_over_outage = ((*g0 * a0->Inverse() * *a1).translation - g1->translation).norm();
+          r.vio_drift_over_outage =
+              ((*g0 * a0->Inverse() * *a1).translation - g1->translation).norm();
       }
     }
   } catch (const std::exception& ex) {
@@ -265,7 +270,9 @@ Cell Summarise(const std::vector<RunResult>& runs, const std::string& seq,
 void WritePlot(const std::string& path, const std::vector<RunResult>& runs, const std::string& seq,
                double outage_start_s) {
   const std::vector<std::pair<std::string, std::string>> series = {
-      {"no GNSS", "#888888"}, {"sigma 3 m", "#1f77b4"}, {"3 m + 10 % outliers", "#2ca02c"},
+      {"no GNSS", "#888888"},
+      {"sigma 3 m", "#1f77b4"},
+      {"3 m + 10 % outliers", "#2ca02c"},
       {"3 m + 60 s outage", "#d62728"}};
   std::vector<const RunResult*> picked;
   double t_max = 1, e_max = 0.5;
@@ -277,7 +284,8 @@ void WritePlot(const std::string& path, const std::vector<RunResult>& runs, cons
         best = &r;
     picked.push_back(best);
     if (!best) continue;
-    for (const auto& [t, e] : best->error_over_time) t_max = std::max(t_max, t), e_max = std::max(e_max, e);
+    for (const auto& [t, e] : best->error_over_time)
+      t_max = std::max(t_max, t), e_max = std::max(e_max, e);
   }
   e_max = std::min(e_max, 20.0);
   const double W = 900, H = 420, left = 60, right = 20, top = 40, bottom = 50;
@@ -285,8 +293,9 @@ void WritePlot(const std::string& path, const std::vector<RunResult>& runs, cons
   svg.Rect(0, 0, W, H, "white");
   auto X = [&](double t) { return left + (W - left - right) * t / t_max; };
   auto Y = [&](double e) { return H - bottom - (H - top - bottom) * std::min(e, e_max) / e_max; };
-  svg.Text(W / 2, 22, "optinav bench gnss: global position error (no alignment), " + seq + " flight",
-           15, "middle");
+  svg.Text(W / 2, 22,
+           "optinav bench gnss: global position error (no alignment), " + seq + " flight", 15,
+           "middle");
   const report::Ticks yt = report::NiceTicks(0, e_max), xt = report::NiceTicks(0, t_max, 8);
   for (double v = yt.start; v <= e_max + 1e-9; v += yt.step) {
     svg.Line(left, Y(v), W - right, Y(v), "#eeeeee", 1);
@@ -295,7 +304,8 @@ void WritePlot(const std::string& path, const std::vector<RunResult>& runs, cons
   for (double v = xt.start; v <= t_max + 1e-9; v += xt.step)
     svg.Text(X(v), H - bottom + 16, report::FormatTick(v, xt.step), 11, "middle");
   svg.Text(W / 2, H - 12, "time (s)", 12, "middle");
-  svg.Text(16, H / 2, "error (m)", 12, "middle", "transform=\"rotate(-90 16 " + std::to_string(H / 2) + ")\"");
+  svg.Text(16, H / 2, "error (m)", 12, "middle",
+           "transform=\"rotate(-90 16 " + std::to_string(H / 2) + ")\"");
   svg.Rect(X(outage_start_s), top, X(outage_start_s + 60) - X(outage_start_s), H - top - bottom,
            "#fde0dd");
   svg.Text(X(outage_start_s + 30), top + 14, "60 s outage (red run)", 11, "middle");
@@ -304,7 +314,8 @@ void WritePlot(const std::string& path, const std::vector<RunResult>& runs, cons
     std::string pts;
     const auto& s = picked[k]->error_over_time;
     const size_t step = std::max<size_t>(1, s.size() / 1500);
-    for (size_t i = 0; i < s.size(); i += step) pts += fmt::format("{:.1f},{:.1f} ", X(s[i].first), Y(s[i].second));
+    for (size_t i = 0; i < s.size(); i += step)
+      pts += fmt::format("{:.1f},{:.1f} ", X(s[i].first), Y(s[i].second));
     svg.Polyline(pts, series[k].second, 1.5);
     svg.Rect(W - 230, top + 10 + 18 * k, 14, 4, series[k].second);
     svg.Text(W - 210, top + 16 + 18 * k,
@@ -342,11 +353,13 @@ int RunGnssBench(int argc, char** argv) {
   app.add_option("--seeds", seeds, "GNSS noise seeds per condition")->capture_default_str();
   app.add_option("--sequences", sequences, "room,outdoor (comma separated)")->capture_default_str();
   app.add_option("--norms", norms, "l2,huber,tukey (comma separated)")->capture_default_str();
-  app.add_option("--scale", scale, "image size factor of the rendered sequences")->capture_default_str();
+  app.add_option("--scale", scale, "image size factor of the rendered sequences")
+      ->capture_default_str();
   app.add_option("--jobs", jobs, "runs in parallel (each VIO run is single-threaded)")
       ->capture_default_str();
   app.add_flag("--reuse", reuse, "reuse complete sequences already rendered in OUT/sequences");
-  app.add_option("--log-level", log_level, "trace|debug|info|warn|error|off")->capture_default_str();
+  app.add_option("--log-level", log_level, "trace|debug|info|warn|error|off")
+      ->capture_default_str();
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -358,7 +371,8 @@ int RunGnssBench(int argc, char** argv) {
     if (jobs < 1) throw Error("must be >= 1", {.field = "--jobs"});
     const std::vector<std::string> seq_names = SplitList(sequences), norm_names = SplitList(norms);
     for (const std::string& s : seq_names)
-      if (s != "room" && s != "outdoor") throw Error("unknown sequence '" + s + "'", {.field = "--sequences"});
+      if (s != "room" && s != "outdoor")
+        throw Error("unknown sequence '" + s + "'", {.field = "--sequences"});
     for (const std::string& n : norm_names)
       if (!vio::ParseGnssNorm(n)) throw Error("unknown norm '" + n + "'", {.field = "--norms"});
     fs::create_directories(out);
@@ -371,10 +385,11 @@ int RunGnssBench(int argc, char** argv) {
     for (const Sequence& s : seqs) {
       runs.push_back(RunOne(s, nullptr, "", 0, nullptr));
       if (!runs.back().ok) throw Error("VIO alone failed: " + runs.back().error, {.file = s.dir});
-      std::printf("bench gnss: %s (%.0f m): VIO alone ATE %.3f m, global (first 5 s aligned) %.3f m, "
-                  "%zu lost interval(s)\n",
-                  s.name.c_str(), s.length_m, runs.back().ate_se3, runs.back().global_rmse,
-                  runs.back().lost);
+      std::printf(
+          "bench gnss: %s (%.0f m): VIO alone ATE %.3f m, global (first 5 s aligned) %.3f m, "
+          "%zu lost interval(s)\n",
+          s.name.c_str(), s.length_m, runs.back().ate_se3, runs.back().global_rmse,
+          runs.back().lost);
       std::fflush(stdout);
       alone[s.name] = runs.back().estimate;
     }
@@ -398,10 +413,11 @@ int RunGnssBench(int argc, char** argv) {
         results[i] = RunOne(*j.seq, j.condition, j.norm, j.seed, &alone[j.seq->name]);
         std::lock_guard lock(print);
         const RunResult& r = results[i];
-        std::printf("bench gnss: [%zu/%zu] %s, %s, %s, seed %d: %s\n", ++done, todo.size(),
-                    r.sequence.c_str(), r.condition.c_str(), r.norm.c_str(), r.seed,
-                    r.ok ? fmt::format("ATE {:.3f} m, global {:.3f} m", r.ate_se3, r.global_rmse).c_str()
-                         : ("failed: " + r.error).c_str());
+        std::printf(
+            "bench gnss: [%zu/%zu] %s, %s, %s, seed %d: %s\n", ++done, todo.size(),
+            r.sequence.c_str(), r.condition.c_str(), r.norm.c_str(), r.seed,
+            r.ok ? fmt::format("ATE {:.3f} m, global {:.3f} m", r.ate_se3, r.global_rmse).c_str()
+                 : ("failed: " + r.error).c_str());
         std::fflush(stdout);
       }
     };
@@ -411,10 +427,15 @@ int RunGnssBench(int argc, char** argv) {
     runs.insert(runs.end(), results.begin(), results.end());
 
     // Tables.
-    std::string table1 = "RMSE ATE after SE(3) alignment (m), mean over seeds [max]; last column: fused <= 1.05 x no GNSS in every seed\n";
-    std::string table2 = "Global RMSE in ENU without alignment (m), mean over seeds [max] (no GNSS: SE(3)-aligned on its first 5 s)\n";
+    std::string table1 =
+        "RMSE ATE after SE(3) alignment (m), mean over seeds [max]; last column: fused <= 1.05 x "
+        "no GNSS in every seed\n";
+    std::string table2 =
+        "Global RMSE in ENU without alignment (m), mean over seeds [max] (no GNSS: SE(3)-aligned "
+        "on its first 5 s)\n";
     std::string header = fmt::format("| {:<22} | {:<5} |", "GNSS", "norm");
-    for (const Sequence& s : seqs) header += fmt::format(" {:>20} |", s.name + fmt::format(" ({:.0f} m)", s.length_m));
+    for (const Sequence& s : seqs)
+      header += fmt::format(" {:>20} |", s.name + fmt::format(" ({:.0f} m)", s.length_m));
     table1 += header + " never worse |\n";
     table2 += header + "\n";
     bool all_never_worse = true;
@@ -424,16 +445,24 @@ int RunGnssBench(int argc, char** argv) {
       for (const Sequence& s : seqs) {
         const Cell a = Summarise(runs, s.name, cond, norm, &RunResult::ate_se3);
         const Cell g = Summarise(runs, s.name, cond, norm, &RunResult::global_rmse);
-        r1 += fmt::format(" {:>20} |", a.n ? fmt::format("{:.3f} [{:.3f}]{}", a.mean, a.max, a.failed ? " !" : "") : "failed");
-        r2 += fmt::format(" {:>20} |", g.n ? fmt::format("{:.3f} [{:.3f}]{}", g.mean, g.max, g.failed ? " !" : "")
-                                            : a.n ? "not aligned" : "failed");
+        r1 += fmt::format(
+            " {:>20} |",
+            a.n ? fmt::format("{:.3f} [{:.3f}]{}", a.mean, a.max, a.failed ? " !" : "") : "failed");
+        r2 += fmt::format(
+            " {:>20} |", g.n ? fmt::format("{:.3f} [{:.3f}]{}", g.mean, g.max, g.failed ? " !" : "")
+                         : a.n ? "not aligned"
+                               : "failed");
         const Cell base = Summarise(runs, s.name, "no GNSS", "-", &RunResult::ate_se3);
         if (cond != "no GNSS") {
           if (a.failed || !(a.max <= 1.05 * base.mean)) never_worse = false;
         }
       }
       if (cond != "no GNSS") all_never_worse &= never_worse;
-      table1 += r1 + (cond == "no GNSS" ? "             |" : never_worse ? " yes         |" : " NO          |") + "\n";
+      table1 += r1 +
+                (cond == "no GNSS" ? "             |"
+                 : never_worse     ? " yes         |"
+                                   : " NO          |") +
+                "\n";
       table2 += r2 + "\n";
     };
     row("no GNSS", "-");
@@ -450,14 +479,18 @@ int RunGnssBench(int argc, char** argv) {
     }
     const std::string outage_table =
         "60 s outage: error at its start and end (m), growth, VIO alone's drift over the same 60 s "
-        "(m), error 10 s after GNSS returns (m)\n| sequence | norm  | seed | start      | end        | "
-        "growth     | VIO-alone drift | +10 s        |\n" + outage;
+        "(m), error 10 s after GNSS returns (m)\n| sequence | norm  | seed | start      | end      "
+        "  | "
+        "growth     | VIO-alone drift | +10 s        |\n" +
+        outage;
     std::string speed;
     for (const Sequence& s : seqs) {
       const Cell b0 = Summarise(runs, s.name, "no GNSS", "-", &RunResult::backend_median_ms);
       const Cell b1 = Summarise(runs, s.name, "sigma 3 m", "huber", &RunResult::backend_median_ms);
-      speed += fmt::format("backend median per frame, {}: no GNSS {:.2f} ms, GNSS sigma 3 m (Huber) {:.2f} ms (x{:.3f}; runs in parallel, noisy)\n",
-                           s.name, b0.mean, b1.mean, b1.mean / b0.mean);
+      speed += fmt::format(
+          "backend median per frame, {}: no GNSS {:.2f} ms, GNSS sigma 3 m (Huber) {:.2f} ms "
+          "(x{:.3f}; runs in parallel, noisy)\n",
+          s.name, b0.mean, b1.mean, b1.mean / b0.mean);
     }
     const std::string report = table1 + "\n" + table2 + "\n" + outage_table + "\n" + speed;
     std::printf("\n%s", report.c_str());
@@ -465,34 +498,48 @@ int RunGnssBench(int argc, char** argv) {
                 all_never_worse ? "yes" : "NO");
 
     // Files.
-    std::string csv = "sequence,condition,norm,seed,ok,aligned,ate_se3_m,global_rmse_m,poses,lost,factors,rejected,backend_median_ms,outage_start_err_m,outage_end_err_m,vio_drift_over_outage_m,err_10s_after_m,error\n";
+    std::string csv =
+        "sequence,condition,norm,seed,ok,aligned,ate_se3_m,global_rmse_m,poses,lost,factors,"
+        "rejected,backend_median_ms,outage_start_err_m,outage_end_err_m,vio_drift_over_outage_m,"
+        "err_10s_after_m,error\n";
     nlohmann::json j;
     j["sequences"] = nlohmann::json::array();
     for (const Sequence& s : seqs)
       j["sequences"].push_back({{"name", s.name}, {"dir", s.dir}, {"length_m", s.length_m}});
     j["runs"] = nlohmann::json::array();
     for (const RunResult& r : runs) {
-      csv += fmt::format("{},{},{},{},{},{},{:.4f},{:.4f},{},{},{},{},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},\"{}\"\n",
-                         r.sequence, r.condition, r.norm, r.seed, r.ok ? 1 : 0, r.aligned ? 1 : 0, r.ate_se3,
-                         r.global_rmse, r.poses, r.lost, r.factors, r.rejected, r.backend_median_ms,
-                         r.outage_start_err, r.outage_end_err, r.vio_drift_over_outage, r.err_10s_after, r.error);
-      j["runs"].push_back({{"sequence", r.sequence}, {"condition", r.condition}, {"norm", r.norm},
-                           {"seed", r.seed}, {"ok", r.ok}, {"enu_aligned", r.aligned}, {"ate_se3_m", r.ate_se3},
-                           {"global_rmse_m", r.global_rmse}, {"lost_intervals", r.lost},
-                           {"factors", r.factors}, {"rejected", r.rejected},
+      csv += fmt::format(
+          "{},{},{},{},{},{},{:.4f},{:.4f},{},{},{},{},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},\"{}\"\n",
+          r.sequence, r.condition, r.norm, r.seed, r.ok ? 1 : 0, r.aligned ? 1 : 0, r.ate_se3,
+          r.global_rmse, r.poses, r.lost, r.factors, r.rejected, r.backend_median_ms,
+          r.outage_start_err, r.outage_end_err, r.vio_drift_over_outage, r.err_10s_after, r.error);
+      j["runs"].push_back({{"sequence", r.sequence},
+                           {"condition", r.condition},
+                           {"norm", r.norm},
+                           {"seed", r.seed},
+                           {"ok", r.ok},
+                           {"enu_aligned", r.aligned},
+                           {"ate_se3_m", r.ate_se3},
+                           {"global_rmse_m", r.global_rmse},
+                           {"lost_intervals", r.lost},
+                           {"factors", r.factors},
+                           {"rejected", r.rejected},
                            {"backend_median_ms", r.backend_median_ms},
                            {"outage_start_err_m", r.outage_start_err},
                            {"outage_end_err_m", r.outage_end_err},
                            {"vio_drift_over_outage_m", r.vio_drift_over_outage},
-                           {"err_10s_after_m", r.err_10s_after}, {"error", r.error}});
+                           {"err_10s_after_m", r.err_10s_after},
+                           {"error", r.error}});
     }
     j["never_worse"] = all_never_worse;
     io::WriteFileAtomically((fs::path(out) / "results.csv").string(), csv);
     io::WriteFileAtomically((fs::path(out) / "results.json").string(), j.dump(2) + "\n");
     io::WriteFileAtomically((fs::path(out) / "tables.md").string(), report);
     for (const Sequence& s : seqs)
-      WritePlot((fs::path(out) / ("error_" + s.name + ".svg")).string(), runs, s.name, s.outage_start_s);
-    std::printf("bench gnss: results.csv, results.json, tables.md, error_*.svg -> %s\n", out.c_str());
+      WritePlot((fs::path(out) / ("error_" + s.name + ".svg")).string(), runs, s.name,
+                s.outage_start_s);
+    std::printf("bench gnss: results.csv, results.json, tables.md, error_*.svg -> %s\n",
+                out.c_str());
   } catch (const Error& e) {
     spdlog::error("{}", e.what());
     return 1;
@@ -504,7 +551,8 @@ int RunGnssBench(int argc, char** argv) {
 
 int RunBench(int argc, char** argv) {
   if (argc >= 2 && std::string(argv[1]) == "gnss") return RunGnssBench(argc - 1, argv + 1);
-  std::fprintf(stderr, "usage: optinav bench gnss --out DIR [options]   (optinav bench gnss --help)\n");
+  std::fprintf(stderr,
+               "usage: optinav bench gnss --out DIR [options]   (optinav bench gnss --help)\n");
   return 2;
 }
 

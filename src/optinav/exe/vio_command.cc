@@ -8,12 +8,12 @@
 #include "optinav/exe/cli_common.h"
 #include "optinav/exe/commands.h"
 #include "optinav/geo/geo.h"
-#include "optinav/report/geo_export.h"
-#include "optinav/vio/gnss_input.h"
 #include "optinav/io/text_parse.h"
 #include "optinav/io/trajectory_io.h"
+#include "optinav/report/geo_export.h"
 #include "optinav/util/error.h"
 #include "optinav/util/logging.h"
+#include "optinav/vio/gnss_input.h"
 #include "optinav/vio/pipeline.h"
 
 namespace optinav {
@@ -139,11 +139,14 @@ int RunVio(int argc, char** argv) {
                  "exact (factor at the sample time) | frame (the document's interpolation to "
                  "frame times)")
       ->capture_default_str();
-  app.add_option("--gnss-gate", gnss_gate, "chi-square gate, 3 DoF (default 16.27 = 99.9 %; 0: off)");
+  app.add_option("--gnss-gate", gnss_gate,
+                 "chi-square gate, 3 DoF (default 16.27 = 99.9 %; 0: off)");
   app.add_option("--gnss-init-distance", gnss_init_distance,
                  "horizontal distance before the ENU alignment is initialised, m (default 20)");
-  app.add_option("--wgs84-out", wgs84_out, "fused trajectory in WGS84 csv (default TRAJ.wgs84.csv)");
-  app.add_option("--geojson-out", geojson_out, "fused trajectory as GeoJSON (default TRAJ.geojson)");
+  app.add_option("--wgs84-out", wgs84_out,
+                 "fused trajectory in WGS84 csv (default TRAJ.wgs84.csv)");
+  app.add_option("--geojson-out", geojson_out,
+                 "fused trajectory as GeoJSON (default TRAJ.geojson)");
   app.add_option("--gnss-rejected-out", rejected_out,
                  "rejected GNSS samples with their reason (default TRAJ.gnss_rejected.csv)");
   try {
@@ -198,7 +201,8 @@ int RunVio(int argc, char** argv) {
       in.file = gnss_file;
       if (gnss_format == "enu") in.kind = io::GnssFileKind::kEnu;
       if (gnss_format == "llh") in.kind = io::GnssFileKind::kLatLonHeight;
-      if (!gnss_origin.empty()) in.origin_lat_lon_height = ParseTriple(gnss_origin, "--gnss-origin");
+      if (!gnss_origin.empty())
+        in.origin_lat_lon_height = ParseTriple(gnss_origin, "--gnss-origin");
       if (!gnss_lever.empty()) in.lever_arm_in_body = ParseTriple(gnss_lever, "--gnss-lever-arm");
       if (gnss_sigma != -1) {
         if (!(gnss_sigma > 0))
@@ -265,8 +269,8 @@ int RunVio(int argc, char** argv) {
       const vio::GnssFusionStats& g = r.gnss_stats;
       std::printf("gnss: %zu samples, %zu factors, %zu rejected (-> %s), %s\n", g.received,
                   g.factors, g.rejected, rejected_out.c_str(),
-                  frame == "enu" ? ("trajectory in ENU" + (wgs84_out.empty() ? std::string()
-                                                                              : ", WGS84 -> " + wgs84_out))
+                  frame == "enu" ? ("trajectory in ENU" +
+                                    (wgs84_out.empty() ? std::string() : ", WGS84 -> " + wgs84_out))
                                        .c_str()
                                  : "trajectory in the VIO world frame (no alignment)");
     }

@@ -51,7 +51,8 @@ GnssFile ReadGnssFile(const std::string& path, std::optional<GnssFileKind> kind)
       SplitFields(trimmed.substr(1), ',', &f);
       for (size_t k = 0; k < f.size(); ++k) {
         const std::string name = Lower(f[k]);
-        if (k == 1 && !kind_known && name.rfind("lat", 0) == 0) out.kind = GnssFileKind::kLatLonHeight;
+        if (k == 1 && !kind_known && name.rfind("lat", 0) == 0)
+          out.kind = GnssFileKind::kLatLonHeight;
         if (k >= 4 && name.rfind("sigma", 0) == 0) sigma_column = static_cast<int>(k);
       }
       kind_known = true;
@@ -90,11 +91,12 @@ GnssFile ReadGnssFile(const std::string& path, std::optional<GnssFileKind> kind)
     }
     if (!out.records.empty() && r.t_ns <= out.records.back().t_ns) {
       ctx.field = "timestamp";
-      throw Error(fmt::format("timestamp {} ns {} (previous {} ns at line {}): GNSS stamps must "
-                              "increase strictly",
-                              r.t_ns, r.t_ns == out.records.back().t_ns ? "is repeated" : "goes back",
-                              out.records.back().t_ns, out.records.back().line),
-                  ctx);
+      throw Error(
+          fmt::format("timestamp {} ns {} (previous {} ns at line {}): GNSS stamps must "
+                      "increase strictly",
+                      r.t_ns, r.t_ns == out.records.back().t_ns ? "is repeated" : "goes back",
+                      out.records.back().t_ns, out.records.back().line),
+          ctx);
     }
     if (!finite) {
       if (out.dropped_non_finite++ == 0) out.first_dropped_line = r.line;

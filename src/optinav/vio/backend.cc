@@ -80,8 +80,8 @@ SlidingWindowBackend::SlidingWindowBackend(const BackendOptions& options, const 
     : options_(options),
       rig_(rig),
       huber_(std::make_unique<ceres::HuberLoss>(options.huber_pixels / options.pixel_sigma)),
-      yaw_held_manifold_(std::make_unique<ceres::SubsetManifold>(kAlignmentSize,
-                                                                 std::vector<int>{3})) {
+      yaw_held_manifold_(
+          std::make_unique<ceres::SubsetManifold>(kAlignmentSize, std::vector<int>{3})) {
   const std::string problem = options_.Check();
   OPTINAV_CHECK_MSG(problem.empty(), problem);
 }
@@ -602,8 +602,8 @@ void SlidingWindowBackend::MarginalizeOldest() {
       specs, marginalize, [&](const double* b) { return ManifoldOf(b); },
       [&](const double* b) { return SizeOf(b); });
   if (alignment_enabled_ && (alignment_walk_translation_ > 0 || alignment_walk_yaw_ > 0)) {
-    const double d = (states_[1]->WorldFromBody().translation - oldest->WorldFromBody().translation)
-                         .norm();
+    const double d =
+        (states_[1]->WorldFromBody().translation - oldest->WorldFromBody().translation).norm();
     Eigen::Vector4d var;
     var << Eigen::Vector3d::Constant(alignment_walk_translation_ * alignment_walk_translation_ * d),
         alignment_walk_yaw_ * alignment_walk_yaw_ * d;

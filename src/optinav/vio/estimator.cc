@@ -314,6 +314,7 @@ bool VioEstimator::TryInitialize(int64_t t_ns, const FrontendOutput& features) {
       accel_bias_sigma = options_.motion_init_accel_bias_sigma;
       last_init_kind_ = "in-motion";
     }
+    if (gnss_) gnss_->OnTrackStarted(!still);
     spdlog::info(
         "vio: {} initialisation at {:.3f} s (gyro std {:.4f} rad/s, accel std {:.3f} "
         "m/s^2, {} stereo features)",

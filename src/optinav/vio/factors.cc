@@ -346,7 +346,8 @@ LinearPrior AddRandomWalk(const LinearPrior& prior, const double* block,
   for (int i = 0; i < nx; ++i) {
     bn[rest[i]] = bx[i] - (Hxa.row(i) * Minv * ba)(0);
     for (int j = 0; j < nx; ++j) Hn(rest[i], rest[j]) = Hxx_new(i, j);
-    for (int j = 0; j < size; ++j) Hn(rest[i], offset + j) = Hn(offset + j, rest[i]) = Hxa_new(i, j);
+    for (int j = 0; j < size; ++j)
+      Hn(rest[i], offset + j) = Hn(offset + j, rest[i]) = Hxa_new(i, j);
   }
   Hn.block(offset, offset, size, size) = Qinv - Qinv * Minv * Qinv;
   bn.segment(offset, size) = Qinv * Minv * ba;

@@ -54,6 +54,10 @@ std::string GnssFusionOptions::Check() const {
   if (!(init_min_distance_m >= 0)) return "init_min_distance_m must be >= 0";
   if (!(init_max_yaw_sigma_rad > 0)) return "init_max_yaw_sigma_rad must be > 0";
   if (init_min_samples < 3) return "init_min_samples must be >= 3";
+  if (!(init_min_inlier_fraction >= 0 && init_min_inlier_fraction <= 1))
+    return "init_min_inlier_fraction must be in [0, 1]";
+  if (!(init_max_chi2_per_axis > 0)) return "init_max_chi2_per_axis must be > 0";
+  if (!(init_settle_s >= 0)) return "init_settle_s must be >= 0";
   if (!std::isfinite(gate_chi2)) return "gate_chi2 must be finite";
   if (!(yaw_hold_speed_m_s >= 0)) return "yaw_hold_speed_m_s must be >= 0";
   if (!(drift_fraction >= 0) || !(drift_m_per_sqrt_s >= 0) || !(min_state_sigma_m > 0))
@@ -130,8 +134,8 @@ class GnssFactor : public TimedFactor {
                               bool uses_speed_bias) const override {
     OPTINAV_CHECK_MSG(uses_speed_bias, "GNSS factors need the IMU (stereo-imu mode)");
     return new ceres::AutoDiffCostFunction<GnssFunctor, 3, kPoseSize, kSpeedBiasSize,
-                                           kAlignmentSize>(new GnssFunctor(
-        anchor_to_t, gravity, lever_, sample_.position_enu_m, sample_.sigma_m));
+                                           kAlignmentSize>(
+        new GnssFunctor(anchor_to_t, gravity, lever_, sample_.position_enu_m, sample_.sigma_m));
   }
   const ceres::LossFunction* loss() const override { return loss_; }
   bool uses_alignment() const override { return true; }
@@ -142,9 +146,7 @@ class GnssFactor : public TimedFactor {
   const ceres::LossFunction* loss_;
 };
 
-Eigen::Matrix2d Rot2(double yaw) {
-  return Eigen::Rotation2Dd(yaw).toRotationMatrix();
-}
+Eigen::Matrix2d Rot2(double yaw) { return Eigen::Rotation2Dd(yaw).toRotationMatrix(); }
 
 Eigen::Vector3d Apply(const WorldAlignment& a, const Eigen::Vector3d& p_world) {
   Eigen::Vector3d out;
@@ -205,6 +207,7 @@ void GnssFusion::AddSample(const GnssSample& sample) {
 
 void GnssFusion::OnTrackLost() {
   history_.clear();
+  track_start_ns_.reset();
   evidence_.clear();
   evidence_tried_ = 0;
   frames_waiting_.clear();
@@ -232,14 +235,15 @@ void GnssFusion::OnFrame(const StateEstimate& estimate, SlidingWindowBackend* ba
   // The model of the VIO position uncertainty grows with the motion since the previous frame.
   if (!history_.empty()) {
     const double dist =
-        (estimate.world_from_body.translation - history_.back().world_from_body.translation)
-            .norm();
+        (estimate.world_from_body.translation - history_.back().world_from_body.translation).norm();
     const double dt = (estimate.t_ns - history_.back().t_ns) * 1e-9;
     state_var_m2_ += std::pow(options_.drift_fraction * dist, 2) +
                      options_.drift_m_per_sqrt_s * options_.drift_m_per_sqrt_s * dt;
   }
   history_.push_back(estimate);
-  while (history_.size() > 2 && history_[1].t_ns < estimate.t_ns - 2'000'000'000) history_.pop_front();
+  if (!track_start_ns_) track_start_ns_ = estimate.t_ns;
+  while (history_.size() > 2 && history_[1].t_ns < estimate.t_ns - 2'000'000'000)
+    history_.pop_front();
 
   // After a VIO re-initialisation the world frame continues from the last good pose: the old
   // alignment holds approximately; re-lock it with a loose prior and a wide gate.
@@ -251,6 +255,7 @@ void GnssFusion::OnFrame(const StateEstimate& estimate, SlidingWindowBackend* ba
     backend->SetAlignmentRandomWalk(options_.alignment_walk_m_per_sqrt_m,
                                     options_.alignment_walk_rad_per_sqrt_m);
     state_var_m2_ = options_.relock_sigma_m * options_.relock_sigma_m;
+    state_var_floor_m2_ = 0;
     relock_ = false;
     ++stats_.alignments;
     spdlog::info("gnss: alignment re-locked after a VIO re-initialisation at {:.3f} s",
@@ -258,8 +263,7 @@ void GnssFusion::OnFrame(const StateEstimate& estimate, SlidingWindowBackend* ba
   }
   if (backend->alignment_enabled()) {
     alignment_ = backend->alignment();
-    backend->SetAlignmentYawHeld(estimate.velocity.head<2>().norm() <
-                                 options_.yaw_hold_speed_m_s);
+    backend->SetAlignmentYawHeld(estimate.velocity.head<2>().norm() < options_.yaw_hold_speed_m_s);
   }
 
   // Samples up to this frame are ready.
@@ -275,8 +279,8 @@ void GnssFusion::OnFrame(const StateEstimate& estimate, SlidingWindowBackend* ba
     if (last_ready_ && (s.t_ns - last_ready_->t_ns) * 1e-9 <= options_.max_interpolation_gap_s) {
       for (int64_t t : frames_waiting_) {
         if (t < last_ready_->t_ns || t > s.t_ns) continue;
-        const double u =
-            static_cast<double>(t - last_ready_->t_ns) / static_cast<double>(s.t_ns - last_ready_->t_ns);
+        const double u = static_cast<double>(t - last_ready_->t_ns) /
+                         static_cast<double>(s.t_ns - last_ready_->t_ns);
         GnssSample at_frame;
         at_frame.t_ns = t;
         at_frame.position_enu_m = (1 - u) * last_ready_->position_enu_m + u * s.position_enu_m;
@@ -287,7 +291,8 @@ void GnssFusion::OnFrame(const StateEstimate& estimate, SlidingWindowBackend* ba
     std::erase_if(frames_waiting_, [&](int64_t t) { return t <= s.t_ns; });
     last_ready_ = s;
   }
-  if (options_.time_mode == GnssTimeMode::kFrameInterpolated) frames_waiting_.push_back(estimate.t_ns);
+  if (options_.time_mode == GnssTimeMode::kFrameInterpolated)
+    frames_waiting_.push_back(estimate.t_ns);
   if (!backend->alignment_enabled() && !relock_) TryInitialize(backend);
 }
 
@@ -303,6 +308,10 @@ void GnssFusion::Use(const GnssSample& s, SlidingWindowBackend* backend) {
       Reject(s, "VIO re-initialising");
       return;
     }
+    if ((s.t_ns - *track_start_ns_) * 1e-9 < settle_s_) {
+      Reject(s, "before the alignment: VIO start-up transient");
+      return;
+    }
     evidence_.push_back({s, antenna});
     return;
   }
@@ -311,13 +320,15 @@ void GnssFusion::Use(const GnssSample& s, SlidingWindowBackend* backend) {
   const double var = s.sigma_m * s.sigma_m + state_var_m2_;
   const double d2 = innovation.squaredNorm() / var;
   if (options_.gate_chi2 > 0 && d2 > options_.gate_chi2) {
-    Reject(s, fmt::format("gate: innovation {:.2f} m, chi2 {:.1f} > {:.2f}", innovation.norm(), d2,
-                          options_.gate_chi2),
+    Reject(s,
+           fmt::format("gate: innovation {:.2f} m, chi2 {:.1f} > {:.2f}", innovation.norm(), d2,
+                       options_.gate_chi2),
            innovation.norm());
     if (!rejecting_since_ns_) rejecting_since_ns_ = s.t_ns;
     if ((s.t_ns - *rejecting_since_ns_) * 1e-9 > options_.reopen_after_s) {
       // Everything rejected for a while: the VIO drifted more than modelled. Widen the gate.
       state_var_m2_ *= 4;
+      state_var_floor_m2_ = state_var_m2_;
       rejecting_since_ns_ = s.t_ns;
       spdlog::info("gnss: {:.1f} s of rejected samples at {:.3f} s, gate widened to {:.1f} m",
                    options_.reopen_after_s, s.t_ns * 1e-9, std::sqrt(state_var_m2_));
@@ -326,8 +337,10 @@ void GnssFusion::Use(const GnssSample& s, SlidingWindowBackend* backend) {
   }
   rejecting_since_ns_.reset();
   AddFactor(s, backend);
-  state_var_m2_ = std::max(1.0 / (1.0 / state_var_m2_ + 1.0 / (s.sigma_m * s.sigma_m)),
-                           options_.min_state_sigma_m * options_.min_state_sigma_m);
+  state_var_floor_m2_ *= 0.5;
+  state_var_m2_ =
+      std::max({1.0 / (1.0 / state_var_m2_ + 1.0 / (s.sigma_m * s.sigma_m)),
+                options_.min_state_sigma_m * options_.min_state_sigma_m, state_var_floor_m2_});
 }
 
 void GnssFusion::AddFactor(const GnssSample& s, SlidingWindowBackend* backend) {
@@ -372,8 +385,9 @@ void GnssFusion::TryInitialize(SlidingWindowBackend* backend) {
     ++tried;
     WorldAlignment a;
     a.yaw_rad = std::atan2(de.y(), de.x()) - std::atan2(dw.y(), dw.x());
-    a.translation = 0.5 * (evidence_[i].sample.position_enu_m + evidence_[j].sample.position_enu_m) -
-                    Apply(a, 0.5 * (evidence_[i].antenna_world + evidence_[j].antenna_world));
+    a.translation =
+        0.5 * (evidence_[i].sample.position_enu_m + evidence_[j].sample.position_enu_m) -
+        Apply(a, 0.5 * (evidence_[i].antenna_world + evidence_[j].antenna_world));
     std::vector<int> in = inliers_of(a);
     if (in.size() > best.size()) best = std::move(in), best_a = a;
   }
@@ -400,6 +414,22 @@ void GnssFusion::TryInitialize(SlidingWindowBackend* backend) {
       a.yaw_rad += step[3];
     }
     best = inliers_of(a);
+  }
+  // The VIO track must agree with the GNSS (see init_min_inlier_fraction); if not, the older
+  // half of the evidence goes (it holds the VIO's start-up transient) and the next frames add more.
+  double chi2 = 0;
+  for (int i : best) {
+    const Evidence& e = evidence_[i];
+    chi2 += (Apply(a, e.antenna_world) - e.sample.position_enu_m).squaredNorm() / var_of(e);
+  }
+  const double chi2_per_axis = best.empty() ? INFINITY : chi2 / (3.0 * best.size());
+  if (static_cast<double>(best.size()) < options_.init_min_inlier_fraction * n ||
+      !(chi2_per_axis <= options_.init_max_chi2_per_axis)) {
+    spdlog::debug("gnss: alignment deferred at {:.3f} s: {} of {} inliers, chi2 per axis {:.2f}",
+                  history_.back().t_ns * 1e-9, best.size(), n, chi2_per_axis);
+    evidence_.erase(evidence_.begin(), evidence_.begin() + n / 2);
+    evidence_tried_ = evidence_.size();
+    return;
   }
   const Eigen::Matrix4d cov = info.inverse();
   if (!(std::sqrt(cov(3, 3)) <= options_.init_max_yaw_sigma_rad)) return;  // wait for more motion
@@ -428,7 +458,8 @@ void GnssFusion::TryInitialize(SlidingWindowBackend* backend) {
   for (int i : best)
     if (evidence_[i].sample.t_ns >= window_start) AddFactor(evidence_[i].sample, backend);
   // The gate starts from the alignment's uncertainty at the newest position.
-  const Eigen::Matrix<double, 3, 4> J = AlignmentJacobian(a, history_.back().world_from_body.translation);
+  const Eigen::Matrix<double, 3, 4> J =
+      AlignmentJacobian(a, history_.back().world_from_body.translation);
   state_var_m2_ = std::max((J * cov * J.transpose()).trace() / 3.0,
                            options_.min_state_sigma_m * options_.min_state_sigma_m);
   if (!stats_.aligned_at_ns) stats_.aligned_at_ns = history_.back().t_ns;
@@ -441,6 +472,7 @@ void GnssFusion::TryInitialize(SlidingWindowBackend* backend) {
       rejected_.size() - before);
   evidence_.clear();
   evidence_tried_ = 0;
+  state_var_floor_m2_ = 0;
 }
 
 }  // namespace optinav::vio

@@ -61,15 +61,27 @@ struct GnssFusionOptions {
   double init_min_distance_m = 5.0;
   double init_max_yaw_sigma_rad = 0.0175;  // 1 deg
   int init_min_samples = 10;
+  // The initialisation also waits until the VIO track agrees with the GNSS: at least this
+  // fraction of the samples are inliers and their mean chi-square per axis is at most
+  // init_max_chi2_per_axis (right after an in-motion VIO start, the first metres are off by
+  // more than precise GNSS allows); otherwise the older half of the evidence is dropped.
+  double init_min_inlier_fraction = 0.8;
+  // After an in-motion VIO start (OnTrackStarted(true)), samples within this time of the
+  // track's first frame are not used for the initialisation: the VIO's start-up transient
+  // (velocity and attitude converging) would bias the alignment.
+  double init_settle_s = 5.0;
+  double init_max_chi2_per_axis = 2.0;
   double gate_chi2 = 16.27;  // 3 DoF, 99.9 %; <= 0 disables the gate
   double yaw_hold_speed_m_s = 1.0;
-  double drift_fraction = 0.01;         // VIO position sigma growth per metre travelled
-  double drift_m_per_sqrt_s = 0.05;     // ... and per sqrt(second)
-  double min_state_sigma_m = 0.25;      // floor of the modelled VIO position sigma
+  double drift_fraction = 0.01;      // VIO position sigma growth per metre travelled
+  double drift_m_per_sqrt_s = 0.05;  // ... and per sqrt(second)
+  double min_state_sigma_m = 0.25;   // floor of the modelled VIO position sigma
   // Added in quadrature to every sample's sigma (factors, gate, initialisation): what the GNSS
   // sigma does not cover (VIO interpolation between states, time sync, linearisation).
   double model_sigma_m = 0.15;
-  double reopen_after_s = 5.0;          // rejections for this long widen the gate (x2 sigma)
+  // Rejections for this long widen the gate (x2 sigma); the widened floor then halves with
+  // each accepted sample, so a VIO that drifted more than modelled is pulled back smoothly.
+  double reopen_after_s = 5.0;
   double max_interpolation_gap_s = 1.0;  // frame-interpolated mode: larger gaps are outages
   // VIO drift relative to ENU as a random walk of the alignment per metre travelled (see
   // SlidingWindowBackend::SetAlignmentRandomWalk).
@@ -107,6 +119,8 @@ class GnssFusion {
   // The VIO track was lost and the backend reset: the alignment is re-locked (loose prior) at
   // the first frame of the next track.
   void OnTrackLost();
+  // The VIO (re)initialised; `in_motion`: without a still IMU window (see init_settle_s).
+  void OnTrackStarted(bool in_motion) { settle_s_ = in_motion ? options_.init_settle_s : 0.0; }
 
   // The current estimate of enu_from_world, once initialised.
   std::optional<WorldAlignment> alignment() const { return alignment_; }
@@ -124,14 +138,17 @@ class GnssFusion {
 
   GnssFusionOptions options_;
   std::unique_ptr<ceres::LossFunction> loss_;
-  std::deque<GnssSample> pending_;      // not yet covered by a frame
-  std::deque<StateEstimate> history_;   // recent frame estimates (world), for interpolation
-  std::vector<Evidence> evidence_;      // before the alignment: (sample, world antenna)
-  size_t evidence_tried_ = 0;           // evidence count at the last initialisation attempt
+  std::deque<GnssSample> pending_;     // not yet covered by a frame
+  std::deque<StateEstimate> history_;  // recent frame estimates (world), for interpolation
+  std::vector<Evidence> evidence_;     // before the alignment: (sample, world antenna)
+  size_t evidence_tried_ = 0;          // evidence count at the last initialisation attempt
   std::optional<WorldAlignment> alignment_;
   bool relock_ = false;
-  double state_var_m2_ = 0;             // modelled VIO position variance (per axis)
+  double state_var_m2_ = 0;        // modelled VIO position variance (per axis)
+  double state_var_floor_m2_ = 0;  // after a widening of the gate; halves per accepted sample
   std::optional<int64_t> rejecting_since_ns_;
+  std::optional<int64_t> track_start_ns_;  // first frame of the current VIO track
+  double settle_s_ = 0;
   std::optional<int64_t> last_sample_ns_;
   std::optional<GnssSample> last_ready_;  // frame-interpolated mode
   std::deque<int64_t> frames_waiting_;    // frame-interpolated mode

@@ -1,6 +1,9 @@
 #include "optinav/vio/gnss_input.h"
 
+#include <cmath>
 #include <filesystem>
+
+#include <fmt/format.h>
 
 #include "optinav/geo/geo.h"
 #include "optinav/util/error.h"
@@ -25,12 +28,18 @@ GnssInput LoadGnssInput(const std::string& dataset_dir, const GnssInputOptions& 
     yaml = (fs::path(in.file).parent_path() / "sensor.yaml").string();
   io::GnssSensorInfo info;
   if (!yaml.empty()) info = io::ReadGnssSensorYaml(yaml);
-  in.lever_arm_in_body = options.lever_arm_in_body.value_or(
-      info.lever_arm_in_body.value_or(Eigen::Vector3d::Zero()));
+  in.lever_arm_in_body =
+      options.lever_arm_in_body.value_or(info.lever_arm_in_body.value_or(Eigen::Vector3d::Zero()));
   in.default_sigma_m = options.sigma_m.value_or(info.sigma_m.value_or(1.0));
   if (!(in.default_sigma_m > 0)) throw Error("GNSS sigma must be > 0", {.field = "--gnss-sigma"});
-  in.origin_lat_lon_height = options.origin_lat_lon_height ? options.origin_lat_lon_height
-                                                           : info.origin_lat_lon_height;
+  in.origin_lat_lon_height =
+      options.origin_lat_lon_height ? options.origin_lat_lon_height : info.origin_lat_lon_height;
+  if (options.origin_lat_lon_height) {
+    const Eigen::Vector3d& o = *options.origin_lat_lon_height;
+    if (std::abs(o[0]) > 90 || std::abs(o[1]) > 180)
+      throw Error(fmt::format("origin latitude {} / longitude {} out of range", o[0], o[1]),
+                  {.field = "--gnss-origin"});
+  }
 
   const io::GnssFile file = io::ReadGnssFile(in.file, options.kind);
   in.dropped_non_finite = file.dropped_non_finite;

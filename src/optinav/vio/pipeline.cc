@@ -53,8 +53,9 @@ Trajectory EstimatesToTrajectory(const std::vector<FrameEstimate>& estimates,
 Trajectory EstimatesToEnuTrajectory(const std::vector<FrameEstimate>& estimates,
                                     const std::optional<Rigid3d>& body_from_cam) {
   Trajectory t;
-  const auto first = std::find_if(estimates.begin(), estimates.end(),
-                                  [](const FrameEstimate& e) { return e.enu_from_world.has_value(); });
+  const auto first = std::find_if(estimates.begin(), estimates.end(), [](const FrameEstimate& e) {
+    return e.enu_from_world.has_value();
+  });
   if (first == estimates.end()) return t;
   t.Reserve(estimates.size(), true);
   Rigid3d enu_from_world = first->enu_from_world->EnuFromWorld();
@@ -216,7 +217,8 @@ VioRunResult RunVioOnAirsim(const std::string& dataset_dir, const VioRunOptions&
   if (options.vio.mode != VioMode::kStereo)
     throw Error("AirSim recordings carry no IMU: use --mode stereo", {.file = dataset_dir});
   if (options.gnss)
-    throw Error("GNSS fusion needs a EuRoC dataset with IMU", {.file = dataset_dir, .field = "--gnss"});
+    throw Error("GNSS fusion needs a EuRoC dataset with IMU",
+                {.file = dataset_dir, .field = "--gnss"});
   io::AirsimReadOptions read;
   read.check_images_exist = !options.skip_missing_images;
   const io::AirsimRecording rec = io::ReadAirsimRecording(dataset_dir, read);
