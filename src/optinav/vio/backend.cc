@@ -202,6 +202,12 @@ void SlidingWindowBackend::EnableAlignment(const WorldAlignment& initial,
   prior_.blocks.push_back(block);
 }
 
+void SlidingWindowBackend::InflateAlignment(const Eigen::Vector4d& sigma) {
+  if (!alignment_enabled_) return;
+  prior_ = AddRandomWalk(prior_, alignment_,
+                         sigma.cwiseAbs2().cwiseMax(1e-12).asDiagonal().toDenseMatrix());
+}
+
 WorldAlignment SlidingWindowBackend::alignment() const {
   WorldAlignment a;
   a.translation = {alignment_[0], alignment_[1], alignment_[2]};

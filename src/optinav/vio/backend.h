@@ -159,6 +159,9 @@ class SlidingWindowBackend {
     alignment_walk_translation_ = translation_per_sqrt_m;
     alignment_walk_yaw_ = yaw_per_sqrt_m;
   }
+  // Forgets part of what the window's prior knows about the alignment now (adds this sigma over
+  // [tx, ty, tz, yaw] as process noise): after the VIO drifted more than the random walk models.
+  void InflateAlignment(const Eigen::Vector4d& sigma);
   // Holds the alignment yaw constant in the solves (GNSS cannot observe it without motion).
   void SetAlignmentYawHeld(bool held) { alignment_yaw_held_ = held; }
   // Timed factors waiting for or used by the window (not yet marginalised).

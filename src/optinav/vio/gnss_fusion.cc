@@ -64,6 +64,7 @@ std::string GnssFusionOptions::Check() const {
     return "VIO drift model parameters must be >= 0 (min_state_sigma_m > 0)";
   if (!(model_sigma_m >= 0)) return "model_sigma_m must be >= 0";
   if (!(reopen_after_s > 0)) return "reopen_after_s must be > 0";
+  if (!(reopen_yaw_sigma_rad >= 0)) return "reopen_yaw_sigma_rad must be >= 0";
   if (!(max_interpolation_gap_s > 0)) return "max_interpolation_gap_s must be > 0";
   if (!(alignment_walk_m_per_sqrt_m >= 0) || !(alignment_walk_rad_per_sqrt_m >= 0))
     return "alignment random walk must be >= 0";
@@ -330,20 +331,33 @@ void GnssFusion::Use(const GnssSample& s, SlidingWindowBackend* backend) {
       state_var_m2_ *= 4;
       state_var_floor_m2_ = state_var_m2_;
       rejecting_since_ns_ = s.t_ns;
+      // The window's prior on the alignment is as overconfident as the model: loosen it too (the
+      // next factors start loose as well: their sigma includes the widened floor, which halves
+      // per accepted sample).
+      backend->InflateAlignment(Eigen::Vector4d(std::sqrt(state_var_m2_), std::sqrt(state_var_m2_),
+                                                std::sqrt(state_var_m2_),
+                                                options_.reopen_yaw_sigma_rad));
       spdlog::info("gnss: {:.1f} s of rejected samples at {:.3f} s, gate widened to {:.1f} m",
                    options_.reopen_after_s, s.t_ns * 1e-9, std::sqrt(state_var_m2_));
     }
     return;
   }
   rejecting_since_ns_.reset();
-  AddFactor(s, backend);
+  AddFactor(s, state_var_m2_, backend);
   state_var_floor_m2_ *= 0.5;
   state_var_m2_ =
       std::max({1.0 / (1.0 / state_var_m2_ + 1.0 / (s.sigma_m * s.sigma_m)),
                 options_.min_state_sigma_m * options_.min_state_sigma_m, state_var_floor_m2_});
 }
 
-void GnssFusion::AddFactor(const GnssSample& s, SlidingWindowBackend* backend) {
+void GnssFusion::AddFactor(const GnssSample& sample, double state_var_m2,
+                           SlidingWindowBackend* backend) {
+  // The factor is weighted by the innovation's sigma, the one the gate used: the sample's with
+  // the modelled VIO uncertainty. The window's VIO is overconfident; this keeps a sample the
+  // gate accepted inside the norm's threshold (Tukey would otherwise ignore every sample once
+  // the VIO drifted past k sample sigmas, and never recover).
+  GnssSample s = sample;
+  s.sigma_m = std::sqrt(s.sigma_m * s.sigma_m + state_var_m2);
   backend->AddTimedFactor(std::make_unique<GnssFactor>(s, options_.lever_arm_in_body, loss_.get()));
   ++stats_.factors;
 }
@@ -456,7 +470,9 @@ void GnssFusion::TryInitialize(SlidingWindowBackend* backend) {
                                   options_.alignment_walk_rad_per_sqrt_m);
   alignment_ = a;
   for (int i : best)
-    if (evidence_[i].sample.t_ns >= window_start) AddFactor(evidence_[i].sample, backend);
+    if (evidence_[i].sample.t_ns >= window_start)
+      AddFactor(evidence_[i].sample, options_.min_state_sigma_m * options_.min_state_sigma_m,
+                backend);
   // The gate starts from the alignment's uncertainty at the newest position.
   const Eigen::Matrix<double, 3, 4> J =
       AlignmentJacobian(a, history_.back().world_from_body.translation);

@@ -82,10 +82,11 @@ struct GnssFusionOptions {
   // Rejections for this long widen the gate (x2 sigma); the widened floor then halves with
   // each accepted sample, so a VIO that drifted more than modelled is pulled back smoothly.
   double reopen_after_s = 5.0;
+  double reopen_yaw_sigma_rad = 0.01;  // yaw process noise added to the alignment at a widening
   double max_interpolation_gap_s = 1.0;  // frame-interpolated mode: larger gaps are outages
   // VIO drift relative to ENU as a random walk of the alignment per metre travelled (see
   // SlidingWindowBackend::SetAlignmentRandomWalk).
-  double alignment_walk_m_per_sqrt_m = 0.03;
+  double alignment_walk_m_per_sqrt_m = 0.1;
   double alignment_walk_rad_per_sqrt_m = 0.002;
   double relock_sigma_m = 10.0;  // after a VIO re-initialisation: translation prior, gate sigma
   double relock_yaw_sigma_rad = 0.1;
@@ -134,7 +135,7 @@ class GnssFusion {
   std::optional<Rigid3d> WorldPoseAt(int64_t t_ns) const;
   void Use(const GnssSample& s, SlidingWindowBackend* backend);
   void TryInitialize(SlidingWindowBackend* backend);
-  void AddFactor(const GnssSample& s, SlidingWindowBackend* backend);
+  void AddFactor(const GnssSample& s, double state_var_m2, SlidingWindowBackend* backend);
 
   GnssFusionOptions options_;
   std::unique_ptr<ceres::LossFunction> loss_;
