@@ -516,7 +516,8 @@ int RunGnssBench(int argc, char** argv) {
           "bench/RESULTS.md has side-by-side runs\n",
           s.name, b0.mean, b1.mean, b1.mean / b0.mean, k0.mean, k1.mean, k1.mean / k0.mean);
     }
-    const std::string report = table1 + "\n" + table2 + "\n" + table3 + "\n" + outage_table + "\n" + speed;
+    const std::string report =
+        table1 + "\n" + table2 + "\n" + table3 + "\n" + outage_table + "\n" + speed;
     std::printf("\n%s", report.c_str());
     std::printf("never worse than VIO alone (every row, every seed, 5 %% margin): %s\n",
                 all_never_worse ? "yes" : "NO");
@@ -524,7 +525,8 @@ int RunGnssBench(int argc, char** argv) {
     // Files.
     std::string csv =
         "sequence,condition,norm,seed,ok,aligned,ate_se3_m,global_rmse_m,poses,lost,factors,"
-        "rejected,global_rmse_10s_m,backend_median_ms,backend_keyframe_median_ms,outage_start_err_m,outage_end_err_m,vio_drift_over_outage_m,"
+        "rejected,global_rmse_10s_m,backend_median_ms,backend_keyframe_median_ms,outage_start_err_"
+        "m,outage_end_err_m,vio_drift_over_outage_m,"
         "err_10s_after_m,error\n";
     nlohmann::json j;
     j["sequences"] = nlohmann::json::array();
@@ -533,10 +535,12 @@ int RunGnssBench(int argc, char** argv) {
     j["runs"] = nlohmann::json::array();
     for (const RunResult& r : runs) {
       csv += fmt::format(
-          "{},{},{},{},{},{},{:.4f},{:.4f},{},{},{},{},{:.4f},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},\"{}\"\n",
+          "{},{},{},{},{},{},{:.4f},{:.4f},{},{},{},{},{:.4f},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{:"
+          ".3f},\"{}\"\n",
           r.sequence, r.condition, r.norm, r.seed, r.ok ? 1 : 0, r.aligned ? 1 : 0, r.ate_se3,
-          r.global_rmse, r.poses, r.lost, r.factors, r.rejected, r.global_rmse_10s, r.backend_median_ms,
-          r.backend_keyframe_median_ms, r.outage_start_err, r.outage_end_err, r.vio_drift_over_outage, r.err_10s_after, r.error);
+          r.global_rmse, r.poses, r.lost, r.factors, r.rejected, r.global_rmse_10s,
+          r.backend_median_ms, r.backend_keyframe_median_ms, r.outage_start_err, r.outage_end_err,
+          r.vio_drift_over_outage, r.err_10s_after, r.error);
       j["runs"].push_back({{"sequence", r.sequence},
                            {"condition", r.condition},
                            {"norm", r.norm},
@@ -565,7 +569,8 @@ int RunGnssBench(int argc, char** argv) {
     fs::create_directories(fs::path(out) / "runs");
     for (const RunResult& r : runs) {
       if (!r.ok) continue;
-      std::string name = fmt::format("{}_{}_{}_seed{}.tum", r.sequence, r.condition, r.norm, r.seed);
+      std::string name =
+          fmt::format("{}_{}_{}_seed{}.tum", r.sequence, r.condition, r.norm, r.seed);
       for (char& ch : name)
         if (!std::isalnum(static_cast<unsigned char>(ch)) && ch != '.' && ch != '_') ch = '_';
       io::WriteTrajectory((fs::path(out) / "runs" / name).string(), r.estimate,

@@ -50,6 +50,7 @@ nlohmann::json StatsJson(const vio::VioRunResult& r, const std::string& mode) {
                {"factors", g.factors},
                {"rejected", g.rejected},
                {"alignments", g.alignments},
+               {"drift_inflations", g.drift_inflations},
                {"aligned_at_s", g.aligned_at_ns ? nlohmann::json(*g.aligned_at_ns * 1e-9)
                                                 : nlohmann::json(nullptr)}};
   return j;
@@ -102,7 +103,8 @@ int RunVio(int argc, char** argv) {
   size_t max_frames = 0;
   bool gnss = false;
   std::string gnss_file, gnss_format = "auto", gnss_norm = "huber", gnss_time = "exact",
-                         gnss_origin, gnss_lever, wgs84_out, geojson_out, rejected_out;
+                         gnss_origin, gnss_lever, gnss_walk, gnss_drift, wgs84_out, geojson_out,
+                         rejected_out;
   double gnss_norm_param = -1, gnss_sigma = -1, gnss_gate = -1, gnss_init_distance = -1;
   app.add_option("--dataset", dataset, "sequence folder (holding mav0/)")->required();
   app.add_option("--format", format, "dataset format: euroc|airsim (airsim: stereo-only)")
@@ -143,6 +145,12 @@ int RunVio(int argc, char** argv) {
                  "chi-square gate, 3 DoF (default 16.27 = 99.9 %; 0: off)");
   app.add_option("--gnss-init-distance", gnss_init_distance,
                  "horizontal distance before the ENU alignment is initialised, m (default 20)");
+  app.add_option("--gnss-walk", gnss_walk,
+                 "VIO drift vs ENU as a random walk of the alignment per metre travelled: "
+                 "M_PER_SQRT_M,RAD_PER_SQRT_M (default from GnssFusionOptions)");
+  app.add_option("--gnss-drift-test", gnss_drift,
+                 "drift detection on the mean innovation: SAMPLES,CHI2 (CHI2 0: off; default "
+                 "from GnssFusionOptions)");
   app.add_option("--wgs84-out", wgs84_out,
                  "fused trajectory in WGS84 csv (default TRAJ.wgs84.csv)");
   app.add_option("--geojson-out", geojson_out,
@@ -222,6 +230,25 @@ int RunVio(int argc, char** argv) {
       g.lever_arm_in_body = gnss_input->lever_arm_in_body;
       if (gnss_gate != -1) g.gate_chi2 = gnss_gate;
       if (gnss_init_distance != -1) g.init_min_distance_m = gnss_init_distance;
+      if (!gnss_drift.empty()) {
+        std::vector<std::string_view> f;
+        io::SplitFields(gnss_drift, ',', &f);
+        if (f.size() != 2)
+          throw Error("expected SAMPLES,CHI2, got '" + gnss_drift + "'",
+                      {.field = "--gnss-drift-test"});
+        g.drift_window_samples =
+            static_cast<int>(io::ParseFiniteDouble(f[0], {.field = "--gnss-drift-test"}));
+        g.drift_test_chi2 = io::ParseFiniteDouble(f[1], {.field = "--gnss-drift-test"});
+      }
+      if (!gnss_walk.empty()) {
+        std::vector<std::string_view> f;
+        io::SplitFields(gnss_walk, ',', &f);
+        if (f.size() != 2)
+          throw Error("expected M_PER_SQRT_M,RAD_PER_SQRT_M, got '" + gnss_walk + "'",
+                      {.field = "--gnss-walk"});
+        g.alignment_walk_m_per_sqrt_m = io::ParseFiniteDouble(f[0], {.field = "--gnss-walk"});
+        g.alignment_walk_rad_per_sqrt_m = io::ParseFiniteDouble(f[1], {.field = "--gnss-walk"});
+      }
       if (const std::string e = g.Check(); !e.empty()) throw Error(e, {.field = "--gnss"});
       options.gnss = g;
       options.gnss_samples = gnss_input->samples;

@@ -65,6 +65,8 @@ std::string GnssFusionOptions::Check() const {
   if (!(model_sigma_m >= 0)) return "model_sigma_m must be >= 0";
   if (!(reopen_after_s > 0)) return "reopen_after_s must be > 0";
   if (!(reopen_yaw_sigma_rad >= 0)) return "reopen_yaw_sigma_rad must be >= 0";
+  if (drift_window_samples < 1) return "drift_window_samples must be >= 1";
+  if (!std::isfinite(drift_test_chi2)) return "drift_test_chi2 must be finite";
   if (!(max_interpolation_gap_s > 0)) return "max_interpolation_gap_s must be > 0";
   if (!(alignment_walk_m_per_sqrt_m >= 0) || !(alignment_walk_rad_per_sqrt_m >= 0))
     return "alignment random walk must be >= 0";
@@ -257,6 +259,8 @@ void GnssFusion::OnFrame(const StateEstimate& estimate, SlidingWindowBackend* ba
                                     options_.alignment_walk_rad_per_sqrt_m);
     state_var_m2_ = options_.relock_sigma_m * options_.relock_sigma_m;
     state_var_floor_m2_ = 0;
+    innovation_mean_.setZero();
+    innovation_mean_var_ = 0;
     relock_ = false;
     ++stats_.alignments;
     spdlog::info("gnss: alignment re-locked after a VIO re-initialisation at {:.3f} s",
@@ -343,6 +347,26 @@ void GnssFusion::Use(const GnssSample& s, SlidingWindowBackend* backend) {
     return;
   }
   rejecting_since_ns_.reset();
+  // Drift detection on the mean innovation (see drift_window_samples).
+  const double alpha = 1.0 / options_.drift_window_samples;
+  innovation_mean_ = (1 - alpha) * innovation_mean_ + alpha * innovation;
+  innovation_mean_var_ = (1 - alpha) * (1 - alpha) * innovation_mean_var_ + alpha * alpha * var;
+  if (options_.drift_test_chi2 > 0 &&
+      innovation_mean_.squaredNorm() > options_.drift_test_chi2 * innovation_mean_var_) {
+    // The offset may be a translation or a yaw error of the VIO world (the yaw converging after
+    // an in-motion start): loosen both, the yaw by the angle the offset subtends at the
+    // antenna's distance from the world origin (the alignment's centre of rotation).
+    const double offset = innovation_mean_.norm();
+    const double reach = std::max(10.0, (*pose).translation.head<2>().norm());
+    backend->InflateAlignment(Eigen::Vector4d(offset, offset, offset, offset / reach));
+    ++stats_.drift_inflations;
+    spdlog::debug(
+        "gnss: mean innovation {:.2f} m at {:.3f} s: VIO drift beyond the model, "
+        "alignment loosened",
+        offset, s.t_ns * 1e-9);
+    innovation_mean_.setZero();
+    innovation_mean_var_ = 0;
+  }
   AddFactor(s, state_var_m2_, backend);
   state_var_floor_m2_ *= 0.5;
   state_var_m2_ =
@@ -489,6 +513,8 @@ void GnssFusion::TryInitialize(SlidingWindowBackend* backend) {
   evidence_.clear();
   evidence_tried_ = 0;
   state_var_floor_m2_ = 0;
+  innovation_mean_.setZero();
+  innovation_mean_var_ = 0;
 }
 
 }  // namespace optinav::vio

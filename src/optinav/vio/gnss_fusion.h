@@ -82,12 +82,19 @@ struct GnssFusionOptions {
   // Rejections for this long widen the gate (x2 sigma); the widened floor then halves with
   // each accepted sample, so a VIO that drifted more than modelled is pulled back smoothly.
   double reopen_after_s = 5.0;
-  double reopen_yaw_sigma_rad = 0.01;  // yaw process noise added to the alignment at a widening
+  double reopen_yaw_sigma_rad = 0.01;    // yaw process noise added to the alignment at a widening
   double max_interpolation_gap_s = 1.0;  // frame-interpolated mode: larger gaps are outages
   // VIO drift relative to ENU as a random walk of the alignment per metre travelled (see
   // SlidingWindowBackend::SetAlignmentRandomWalk).
-  double alignment_walk_m_per_sqrt_m = 0.1;
-  double alignment_walk_rad_per_sqrt_m = 0.002;
+  double alignment_walk_m_per_sqrt_m = 0.003;
+  double alignment_walk_rad_per_sqrt_m = 0.0002;
+  // Drift detection: the exponential mean of the accepted innovations (over about
+  // drift_window_samples) is tested against its expected spread; beyond drift_test_chi2
+  // (3 DoF) the VIO has drifted more than the random walk allows, and the alignment's prior is
+  // loosened by the mean offset. This adapts the fusion to the VIO's actual drift: a small walk
+  // keeps a precise VIO precise under noisy GNSS, the test lets a drifting one follow.
+  int drift_window_samples = 50;
+  double drift_test_chi2 = 40.0;
   double relock_sigma_m = 10.0;  // after a VIO re-initialisation: translation prior, gate sigma
   double relock_yaw_sigma_rad = 0.1;
 
@@ -105,6 +112,7 @@ struct GnssFusionStats {
   size_t received = 0, factors = 0, rejected = 0;
   std::optional<int64_t> aligned_at_ns;  // first alignment
   int alignments = 0;                    // including re-locks after VIO re-initialisation
+  int drift_inflations = 0;              // the drift test loosened the alignment
 };
 
 class GnssFusion {
@@ -145,8 +153,11 @@ class GnssFusion {
   size_t evidence_tried_ = 0;          // evidence count at the last initialisation attempt
   std::optional<WorldAlignment> alignment_;
   bool relock_ = false;
-  double state_var_m2_ = 0;        // modelled VIO position variance (per axis)
-  double state_var_floor_m2_ = 0;  // after a widening of the gate; halves per accepted sample
+  double state_var_m2_ = 0;  // modelled VIO position variance (per axis)
+  double state_var_floor_m2_ = 0;
+  Eigen::Vector3d innovation_mean_ = Eigen::Vector3d::Zero();  // drift detection
+  double innovation_mean_var_ = 0;  // its expected variance per axis  // after a widening of the
+                                    // gate; halves per accepted sample
   std::optional<int64_t> rejecting_since_ns_;
   std::optional<int64_t> track_start_ns_;  // first frame of the current VIO track
   double settle_s_ = 0;
