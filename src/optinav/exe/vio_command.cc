@@ -116,7 +116,8 @@ int RunVio(int argc, char** argv) {
                  "timing per module (median, p95 per frame) and lost intervals, JSON");
   app.add_option("--mode", mode_name, "stereo-imu|stereo (default: the config's, else stereo-imu)");
   app.add_flag("--sequential", sequential,
-               "run in one thread (default: a loader thread feeds the estimator; same results)");
+               "run in one thread, deterministic (default: loader, frontend and backend threads; "
+               "close to, not identical with, the sequential results)");
   app.add_option("--max-frames", max_frames, "process only the first N stereo frames (0: all)");
   app.add_option("--log-level", log_level, "trace|debug|info|warn|error|off")
       ->capture_default_str();

@@ -1,4 +1,5 @@
-// A bounded, closable, thread-safe FIFO queue joining pipeline modules.
+// A bounded, closable, thread-safe FIFO queue joining pipeline modules, and a one-slot mailbox
+// for feedback between them.
 #pragma once
 
 #include <condition_variable>
@@ -69,6 +70,36 @@ class ThreadSafeQueue {
   std::condition_variable not_empty_, not_full_;
   std::deque<T> items_;
   bool closed_ = false;
+};
+
+// A thread-safe one-slot mailbox: the writer updates the pending message in place (overwrite or
+// merge into what the reader has not taken yet); the reader takes it when there is one, without
+// ever waiting for the writer.
+template <typename T>
+class Mailbox {
+ public:
+  // `update(T&)` runs under the lock on the pending message (default-constructed when none).
+  template <typename F>
+  void Update(F&& update) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!pending_) pending_.emplace();
+    update(*pending_);
+  }
+  void Post(T message) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    pending_ = std::move(message);
+  }
+  // The pending message (then none is pending), or nullopt. Never blocks on an empty box.
+  std::optional<T> Take() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    std::optional<T> message = std::move(pending_);
+    pending_.reset();
+    return message;
+  }
+
+ private:
+  std::mutex mutex_;
+  std::optional<T> pending_;
 };
 
 }  // namespace optinav

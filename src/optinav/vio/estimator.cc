@@ -176,6 +176,14 @@ VioEstimator::VioEstimator(const camera::StereoRig& rig, const Rigid3d& body_fro
 
 VioEstimator::~VioEstimator() = default;
 
+void VioEstimator::AppendImu(const TimedImuSample& s, double keep_s,
+                             std::deque<TimedImuSample>* imu) {
+  imu->push_back(s);
+  // Keep a few seconds: the initialisation window and the interval since the last frame.
+  const int64_t keep_ns = static_cast<int64_t>(keep_s * 1e9);
+  while (imu->size() > 2 && imu->front().t_ns < s.t_ns - keep_ns) imu->pop_front();
+}
+
 void VioEstimator::AddImu(const TimedImuSample& s) {
   if (!s.gyro.allFinite() || !s.accel.allFinite()) {
     spdlog::warn("vio: dropping non-finite IMU sample at {} ns", s.t_ns);
@@ -185,21 +193,20 @@ void VioEstimator::AddImu(const TimedImuSample& s) {
     spdlog::warn("vio: dropping IMU sample at {} ns (not after {} ns)", s.t_ns, imu_.back().t_ns);
     return;
   }
-  imu_.push_back(s);
-  // Keep a few seconds: the initialisation window and the interval since the last frame.
-  const int64_t keep_ns = static_cast<int64_t>((options_.init_window_s + 3.0) * 1e9);
-  while (imu_.size() > 2 && imu_.front().t_ns < s.t_ns - keep_ns) imu_.pop_front();
+  AppendImu(s, options_.init_window_s + 3.0, &imu_);
+  imu_for_backend_.push_back(s);
 }
 
-std::optional<std::string> VioEstimator::ImuProblem(int64_t t0_ns, int64_t t1_ns) const {
+std::optional<std::string> VioEstimator::ImuProblem(const std::deque<TimedImuSample>& imu,
+                                                    int64_t t0_ns, int64_t t1_ns) const {
   const int64_t max_gap = static_cast<int64_t>(options_.max_imu_gap_s * 1e9);
-  if (imu_.empty()) return "IMU gap: no IMU data (IMU stopped)";
-  if (imu_.back().t_ns < t1_ns - max_gap)
+  if (imu.empty()) return "IMU gap: no IMU data (IMU stopped)";
+  if (imu.back().t_ns < t1_ns - max_gap)
     return fmt::format("IMU gap: no IMU sample in the {:.3f} s before the frame (IMU stopped?)",
-                       (t1_ns - imu_.back().t_ns) * 1e-9);
-  if (imu_.front().t_ns > t0_ns + max_gap) return "IMU gap: no IMU data since the previous frame";
+                       (t1_ns - imu.back().t_ns) * 1e-9);
+  if (imu.front().t_ns > t0_ns + max_gap) return "IMU gap: no IMU data since the previous frame";
   int64_t prev = t0_ns;
-  for (const TimedImuSample& s : imu_) {
+  for (const TimedImuSample& s : imu) {
     if (s.t_ns <= t0_ns) {
       prev = s.t_ns;
       continue;
@@ -212,15 +219,14 @@ std::optional<std::string> VioEstimator::ImuProblem(int64_t t0_ns, int64_t t1_ns
   return std::nullopt;
 }
 
-ImuPreintegration VioEstimator::Preintegrate(int64_t t0_ns, int64_t t1_ns,
-                                             const ImuBias& bias) const {
+ImuPreintegration VioEstimator::Preintegrate(const std::deque<TimedImuSample>& imu, int64_t t0_ns,
+                                             int64_t t1_ns, const ImuBias& bias) const {
   std::vector<TimedImuSample> window;
-  for (size_t i = 0; i < imu_.size(); ++i) {
-    const bool next_after_t0 = i + 1 < imu_.size() && imu_[i + 1].t_ns > t0_ns;
-    if ((imu_[i].t_ns >= t0_ns || next_after_t0) && imu_[i].t_ns <= t1_ns)
-      window.push_back(imu_[i]);
-    if (imu_[i].t_ns >= t1_ns) {
-      window.push_back(imu_[i]);
+  for (size_t i = 0; i < imu.size(); ++i) {
+    const bool next_after_t0 = i + 1 < imu.size() && imu[i + 1].t_ns > t0_ns;
+    if ((imu[i].t_ns >= t0_ns || next_after_t0) && imu[i].t_ns <= t1_ns) window.push_back(imu[i]);
+    if (imu[i].t_ns >= t1_ns) {
+      window.push_back(imu[i]);
       break;
     }
   }
@@ -247,13 +253,14 @@ void VioEstimator::Lose(int64_t t_ns, const std::string& reason) {
   }
   spdlog::warn("vio: tracking lost at {:.3f} s: {}", t_ns * 1e-9, reason);
   backend_.Reset();
+  posted_rejected_ = 0;
   if (gnss_) gnss_->OnTrackLost();
   weak_since_s_ = -1;
 }
 
 void VioEstimator::Finish() {
   if (lost_since_ns_) {
-    lost_.push_back({*lost_since_ns_, prev_frame_ns_.value_or(*lost_since_ns_),
+    lost_.push_back({*lost_since_ns_, last_frame_ns_.value_or(*lost_since_ns_),
                      *lost_reason_ + " (not recovered before the end)"});
     lost_since_ns_.reset();
   }
@@ -269,10 +276,10 @@ bool VioEstimator::TryInitialize(int64_t t_ns, const FrontendOutput& features) {
   if (options_.mode == VioMode::kStereoImu) {
     const int64_t t0 = t_ns - static_cast<int64_t>(options_.init_window_s * 1e9);
     std::vector<const TimedImuSample*> window;
-    for (const TimedImuSample& s : imu_)
+    for (const TimedImuSample& s : backend_imu_)
       if (s.t_ns >= t0 && s.t_ns <= t_ns) window.push_back(&s);
     if (window.size() < 10 || window.front()->t_ns > t0 + (t_ns - t0) / 5) return false;
-    if (ImuProblem(window.front()->t_ns, t_ns)) return false;
+    if (ImuProblem(backend_imu_, window.front()->t_ns, t_ns)) return false;
     Eigen::Vector3d mg = Eigen::Vector3d::Zero(), ma = Eigen::Vector3d::Zero();
     for (const auto* s : window) mg += s->gyro, ma += s->accel;
     mg /= window.size();
@@ -337,77 +344,140 @@ bool VioEstimator::TryInitialize(int64_t t_ns, const FrontendOutput& features) {
 
 std::optional<FrameEstimate> VioEstimator::ProcessFrame(int64_t t_ns, const cv::Mat& left,
                                                         const cv::Mat& right) {
-  ScopedTimer total(timing_, "total");
+  std::optional<FramePacket> packet = RunFrontend(t_ns, left, right);
+  if (!packet) return std::nullopt;
+  return RunBackend(std::move(*packet));
+}
+
+std::optional<FramePacket> VioEstimator::RunFrontend(int64_t t_ns, const cv::Mat& left,
+                                                     const cv::Mat& right) {
+  const Timer work;
   if (prev_frame_ns_ && t_ns <= *prev_frame_ns_) {
     spdlog::warn("vio: skipping frame at {} ns (not after the previous one)", t_ns);
+    timing_.Add("total", work.ElapsedSeconds());
     return std::nullopt;
   }
-  const bool use_imu = options_.mode == VioMode::kStereoImu;
-  std::optional<std::string> problem;
+  // The backend's latest feedback (the previous frame's when called in order).
+  if (std::optional<BackendFeedback> feedback = feedback_mailbox_.Take()) {
+    if (feedback->rejected_tracks) frontend_.Drop(*feedback->rejected_tracks);
+    feedback->rejected_tracks.reset();
+    feedback_ = std::move(*feedback);
+  }
+  FramePacket packet;
+  packet.t_ns = t_ns;
+  packet.prev_t_ns = prev_frame_ns_;
   std::optional<Eigen::Quaterniond> cur_from_prev;
-  ImuPreintegration pre(ImuBias{}, imu_noise_);
   if (prev_frame_ns_) {
     const double gap_s = (t_ns - *prev_frame_ns_) * 1e-9;
     if (gap_s > options_.max_frame_gap_s) {
-      problem = fmt::format("frame time jump of {:.3f} s", gap_s);
-    } else if (use_imu) {
-      problem = ImuProblem(*prev_frame_ns_, t_ns);
-      if (!problem) {
-        const ImuBias bias = backend_.initialized() ? backend_.Newest().bias : ImuBias{};
-        pre = Preintegrate(*prev_frame_ns_, t_ns, bias);
+      packet.problem = fmt::format("frame time jump of {:.3f} s", gap_s);
+    } else if (options_.mode == VioMode::kStereoImu) {
+      packet.problem = ImuProblem(imu_, *prev_frame_ns_, t_ns);
+      if (!packet.problem) {
+        packet.pre_bias = feedback_.initialized ? feedback_.bias : ImuBias{};
+        packet.pre = Preintegrate(imu_, *prev_frame_ns_, t_ns, packet.pre_bias);
         const Eigen::Quaterniond cam_from_body = body_from_cam0_.rotation.conjugate();
-        cur_from_prev = cam_from_body * pre.delta_R().conjugate() * body_from_cam0_.rotation;
+        cur_from_prev =
+            cam_from_body * packet.pre->delta_R().conjugate() * body_from_cam0_.rotation;
       }
     }
   }
-  FrontendOutput features;
   {
     ScopedTimer timer(timing_, "frontend");
-    features = frontend_.Process(t_ns, left, right, cur_from_prev, !backend_.initialized());
+    packet.features = frontend_.Process(t_ns, left, right, cur_from_prev, !feedback_.initialized);
   }
   prev_frame_ns_ = t_ns;
-  if (backend_.initialized() && problem) Lose(t_ns, *problem);
-  if (!backend_.initialized()) {
-    if (!TryInitialize(t_ns, features)) return std::nullopt;
-    last_good_ = backend_.Newest();
-    if (gnss_) gnss_->OnFrame(*last_good_, &backend_);
-    return FrameEstimate{*last_good_, true, gnss_ ? gnss_->alignment() : std::nullopt};
-  }
-  StateEstimate estimate;
-  {
-    const Timer timer;
-    estimate = backend_.AddFrame(t_ns, pre, features.observations, features.keyframe);
-    const double s = timer.ElapsedSeconds();
-    timing_.Add("backend", s);
-    // Keyframes carry the window solve (and the marginalisation): the per-keyframe cost.
-    if (features.keyframe) timing_.Add("backend_keyframe", s);
-  }
-  frontend_.Drop(backend_.rejected_tracks());
-  // Divergence.
-  const bool finite = estimate.world_from_body.translation.allFinite() &&
-                      estimate.world_from_body.rotation.coeffs().allFinite() &&
-                      estimate.velocity.allFinite();
-  if (!finite || estimate.velocity.norm() > options_.max_speed_m_s ||
-      (use_imu && (estimate.bias.gyro.norm() > options_.max_gyro_bias ||
-                   estimate.bias.accel.norm() > options_.max_accel_bias))) {
-    Lose(t_ns, "estimate diverged (speed or bias out of bounds)");
-    return std::nullopt;
-  }
-  // Weak tracking for too long.
-  const double t_s = t_ns * 1e-9;
-  if (backend_.stats().newest_constrained_landmarks < options_.min_tracked_landmarks) {
-    if (weak_since_s_ < 0) weak_since_s_ = t_s;
-    if (t_s - weak_since_s_ > options_.max_weak_tracking_s) {
-      Lose(t_ns, fmt::format("fewer than {} tracked landmarks for {:.2f} s",
-                             options_.min_tracked_landmarks, t_s - weak_since_s_));
+  packet.imu = std::move(imu_for_backend_);
+  imu_for_backend_.clear();
+  packet.frontend_s = work.ElapsedSeconds();
+  return packet;
+}
+
+void VioEstimator::PostFeedback(bool with_rejected_tracks) {
+  BackendFeedback feedback;
+  feedback.initialized = backend_.initialized();
+  if (feedback.initialized) feedback.bias = backend_.Newest().bias;
+  // The rejected set only grows between resets (Lose resets posted_rejected_).
+  const bool rejected_changed =
+      with_rejected_tracks && backend_.rejected_tracks().size() != posted_rejected_;
+  feedback_mailbox_.Update([&](BackendFeedback& pending) {
+    pending.initialized = feedback.initialized;
+    pending.bias = feedback.bias;
+    // Kept until taken: a later message without a set does not erase it.
+    if (rejected_changed) pending.rejected_tracks = backend_.rejected_tracks();
+  });
+  if (rejected_changed) posted_rejected_ = backend_.rejected_tracks().size();
+}
+
+std::optional<FrameEstimate> VioEstimator::RunBackend(FramePacket packet) {
+  // "total": this frame's work in both steps (queue waits between threads excluded).
+  struct TotalTimer {
+    TimingStats& timing;
+    double frontend_s;
+    Timer timer;
+    ~TotalTimer() { timing.Add("total", frontend_s + timer.ElapsedSeconds()); }
+  } total{timing_, packet.frontend_s, Timer()};
+  const int64_t t_ns = packet.t_ns;
+  for (const TimedImuSample& s : packet.imu)
+    AppendImu(s, options_.init_window_s + 3.0, &backend_imu_);
+  last_frame_ns_ = t_ns;
+  std::optional<FrameEstimate> result = [&]() -> std::optional<FrameEstimate> {
+    if (backend_.initialized() && packet.problem) Lose(t_ns, *packet.problem);
+    if (!backend_.initialized()) {
+      if (!TryInitialize(t_ns, packet.features)) return std::nullopt;
+      last_good_ = backend_.Newest();
+      if (gnss_) gnss_->OnFrame(*last_good_, &backend_);
+      return FrameEstimate{*last_good_, true, gnss_ ? gnss_->alignment() : std::nullopt};
+    }
+    // The frontend preintegrated at the bias it knew; redo it at the current one if that
+    // differs (never when the steps run in order).
+    ImuPreintegration pre =
+        packet.pre ? std::move(*packet.pre) : ImuPreintegration(ImuBias{}, imu_noise_);
+    if (packet.pre && packet.prev_t_ns) {
+      const ImuBias bias = backend_.Newest().bias;
+      if (bias.gyro != packet.pre_bias.gyro || bias.accel != packet.pre_bias.accel)
+        pre = Preintegrate(backend_imu_, *packet.prev_t_ns, t_ns, bias);
+    }
+    const FrontendOutput& features = packet.features;
+    StateEstimate estimate;
+    {
+      const Timer timer;
+      estimate = backend_.AddFrame(t_ns, pre, features.observations, features.keyframe);
+      const double s = timer.ElapsedSeconds();
+      timing_.Add("backend", s);
+      // Keyframes carry the window solve (and the marginalisation): the per-keyframe cost.
+      if (features.keyframe) timing_.Add("backend_keyframe", s);
+    }
+    PostFeedback(/*with_rejected_tracks=*/true);
+    // Divergence.
+    const bool use_imu = options_.mode == VioMode::kStereoImu;
+    const bool finite = estimate.world_from_body.translation.allFinite() &&
+                        estimate.world_from_body.rotation.coeffs().allFinite() &&
+                        estimate.velocity.allFinite();
+    if (!finite || estimate.velocity.norm() > options_.max_speed_m_s ||
+        (use_imu && (estimate.bias.gyro.norm() > options_.max_gyro_bias ||
+                     estimate.bias.accel.norm() > options_.max_accel_bias))) {
+      Lose(t_ns, "estimate diverged (speed or bias out of bounds)");
       return std::nullopt;
     }
-  } else {
-    weak_since_s_ = -1;
-    last_good_ = estimate;  // lost intervals start at the last well-tracked frame
-  }
-  if (gnss_) gnss_->OnFrame(estimate, &backend_);
-  return FrameEstimate{estimate, features.keyframe, gnss_ ? gnss_->alignment() : std::nullopt};
+    // Weak tracking for too long.
+    const double t_s = t_ns * 1e-9;
+    if (backend_.stats().newest_constrained_landmarks < options_.min_tracked_landmarks) {
+      if (weak_since_s_ < 0) weak_since_s_ = t_s;
+      if (t_s - weak_since_s_ > options_.max_weak_tracking_s) {
+        Lose(t_ns, fmt::format("fewer than {} tracked landmarks for {:.2f} s",
+                               options_.min_tracked_landmarks, t_s - weak_since_s_));
+        return std::nullopt;
+      }
+    } else {
+      weak_since_s_ = -1;
+      last_good_ = estimate;  // lost intervals start at the last well-tracked frame
+    }
+    if (gnss_) gnss_->OnFrame(estimate, &backend_);
+    return FrameEstimate{estimate, features.keyframe, gnss_ ? gnss_->alignment() : std::nullopt};
+  }();
+  PostFeedback(/*with_rejected_tracks=*/false);
+  return result;
 }
 
 }  // namespace optinav::vio

@@ -1,6 +1,19 @@
 // The visual-inertial estimator: frontend + initialisation + backend + failure handling, fed
 // one IMU sample or stereo frame at a time (sequential and deterministic: same input, same
-// output). The threaded data provider in pipeline.h drives it.
+// output). The data provider in pipeline.h drives it.
+//
+// A frame goes through two steps that may run in two threads (pipeline.h, threaded mode):
+//   RunFrontend (frontend side: feature tracking, stereo matching, frame/IMU gap checks, the IMU
+//     preintegration since the previous frame) -> a FramePacket;
+//   RunBackend (backend side: initialisation, the sliding window, failure handling, GNSS) on it.
+// ProcessFrame runs both in order. The backend's feedback to the frontend (whether it is
+// initialised, its newest bias for the gyro prediction and the preintegration, the track ids it
+// rejected) goes through a mailbox that RunFrontend reads at its start when there is a message:
+// called in order (ProcessFrame) the frontend always sees the previous frame's backend result,
+// exactly as one sequential loop; from two threads it sees the latest one posted. The backend
+// re-preintegrates the IMU when the packet's bias is not its current one.
+// Thread use: RunFrontend and AddImu from one thread, RunBackend, AddGnss and Finish from one
+// (possibly other) thread; the accessors below after both stopped.
 //
 // Initialisation (stereo-imu): when the IMU window before a frame is still (standard deviations
 // of the 0.1 s block means of gyro and accel under thresholds), gravity is the mean specific force,
@@ -19,12 +32,14 @@
 #include <deque>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
 #include <opencv2/core.hpp>
 
 #include "optinav/camera/camera.h"
+#include "optinav/util/queue.h"
 #include "optinav/util/timer.h"
 #include "optinav/vio/backend.h"
 #include "optinav/vio/frontend.h"
@@ -78,6 +93,28 @@ struct FrameEstimate {
   std::optional<WorldAlignment> enu_from_world;
 };
 
+// The frontend step's result: what the backend step needs of a frame.
+struct FramePacket {
+  int64_t t_ns = 0;
+  FrontendOutput features;
+  std::optional<int64_t> prev_t_ns;    // the previous frame's time (the frontend's)
+  std::optional<std::string> problem;  // frame-time jump or IMU gap since the previous frame
+  // Stereo-imu, no problem: the IMU preintegrated from the previous frame at `pre_bias`.
+  std::optional<ImuPreintegration> pre;
+  ImuBias pre_bias;
+  // The IMU samples accepted by AddImu since the previous packet (the backend's own copy).
+  std::vector<TimedImuSample> imu;
+  double frontend_s = 0;  // the frontend step's work time (for the "total" timing)
+};
+
+// Backend -> frontend feedback (the mailbox message).
+struct BackendFeedback {
+  bool initialized = false;
+  ImuBias bias;  // the newest state's (zero when not initialised)
+  // The backend's rejected track ids (cumulative since its last reset) when they changed.
+  std::optional<std::set<uint64_t>> rejected_tracks;
+};
+
 class VioEstimator {
  public:
   // `body_from_cam0`, `body_from_cam1`: extrinsics; the IMU is the body frame.
@@ -91,6 +128,10 @@ class VioEstimator {
   // initialised / lost.
   std::optional<FrameEstimate> ProcessFrame(int64_t t_ns, const cv::Mat& left,
                                             const cv::Mat& right);
+  // The two halves of ProcessFrame (see the top of the file). RunFrontend returns nullopt for a
+  // frame that is not after the previous one (skipped).
+  std::optional<FramePacket> RunFrontend(int64_t t_ns, const cv::Mat& left, const cv::Mat& right);
+  std::optional<FrameEstimate> RunBackend(FramePacket packet);
   // Closes an open lost interval at the end of the data.
   void Finish();
 
@@ -108,21 +149,35 @@ class VioEstimator {
  private:
   bool TryInitialize(int64_t t_ns, const FrontendOutput& features);
   void Lose(int64_t t_ns, const std::string& reason);
-  std::optional<std::string> ImuProblem(int64_t t0_ns, int64_t t1_ns) const;
-  ImuPreintegration Preintegrate(int64_t t0_ns, int64_t t1_ns, const ImuBias& bias) const;
+  void PostFeedback(bool with_rejected_tracks);
+  // The IMU buffers: one per side, fed with the same samples in the same order.
+  static void AppendImu(const TimedImuSample& sample, double keep_s,
+                        std::deque<TimedImuSample>* imu);
+  std::optional<std::string> ImuProblem(const std::deque<TimedImuSample>& imu, int64_t t0_ns,
+                                        int64_t t1_ns) const;
+  ImuPreintegration Preintegrate(const std::deque<TimedImuSample>& imu, int64_t t0_ns,
+                                 int64_t t1_ns, const ImuBias& bias) const;
 
   camera::StereoRig rig_;
   Rigid3d body_from_cam0_;
   ImuNoise imu_noise_;
   VioOptions options_;
+  TimingStats timing_;  // thread-safe, written by both sides
+  Mailbox<BackendFeedback> feedback_mailbox_;
+  // Frontend side.
   StereoFrontend frontend_;
-  SlidingWindowBackend backend_;
   std::deque<TimedImuSample> imu_;
-  TimingStats timing_;
+  std::vector<TimedImuSample> imu_for_backend_;  // accepted since the last packet
+  std::optional<int64_t> prev_frame_ns_;
+  BackendFeedback feedback_;  // the latest taken from the mailbox (rejected ids not kept)
+  // Backend side.
+  SlidingWindowBackend backend_;
+  std::deque<TimedImuSample> backend_imu_;
+  size_t posted_rejected_ = 0;  // size of the rejected-track set last posted
   std::vector<LostInterval> lost_;
   std::optional<int64_t> lost_since_ns_;
   std::optional<std::string> lost_reason_;
-  std::optional<int64_t> prev_frame_ns_;
+  std::optional<int64_t> last_frame_ns_;  // the last frame the backend step saw
   std::optional<StateEstimate> last_good_;
   double weak_since_s_ = -1;
   int initializations_ = 0;

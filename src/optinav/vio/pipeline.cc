@@ -1,8 +1,12 @@
 #include "optinav/vio/pipeline.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <exception>
 #include <filesystem>
+#include <functional>
+#include <mutex>
 #include <thread>
 
 #include <opencv2/imgcodecs.hpp>
@@ -11,7 +15,7 @@
 #include "optinav/io/euroc_dataset.h"
 #include "optinav/util/error.h"
 #include "optinav/util/logging.h"
-#include "optinav/util/queue.h"
+#include "optinav/util/stages.h"
 
 namespace optinav::vio {
 
@@ -75,6 +79,13 @@ struct StereoPair {
   std::string left, right;
 };
 
+// What the frontend thread hands to the backend thread: the GNSS samples up to the frame (in
+// time order, before it) and the frame's packet (none when the frame was skipped).
+struct TrackedPacket {
+  std::vector<GnssSample> gnss;
+  std::optional<FramePacket> frame;
+};
+
 // The run loop shared by the dataset formats.
 VioRunResult RunOnPairs(const camera::StereoRig& rig, const Rigid3d& body_from_cam0,
                         const ImuNoise& noise, const std::vector<TimedImuSample>& imu,
@@ -110,42 +121,40 @@ VioRunResult RunOnPairs(const camera::StereoRig& rig, const Rigid3d& body_from_c
 
   VioEstimator estimator(rig, body_from_cam0, noise, options.vio);
   if (options.gnss) estimator.EnableGnss(*options.gnss);
-  auto consume = [&](Packet& packet) {
-    for (const TimedImuSample& s : packet.imu) estimator.AddImu(s);
-    for (const GnssSample& s : packet.gnss) estimator.AddGnss(s);
-    if (packet.left.empty()) return;
-    ++result.frames_processed;
-    if (auto e = estimator.ProcessFrame(packet.t_ns, packet.left, packet.right)) {
-      if (result.first_init_kind.empty()) result.first_init_kind = estimator.last_init_kind();
-      result.estimates.push_back(*e);
-    }
+  auto record = [&](std::optional<FrameEstimate> e) {
+    if (!e) return;
+    if (result.first_init_kind.empty()) result.first_init_kind = estimator.last_init_kind();
+    result.estimates.push_back(std::move(*e));
   };
 
   if (!options.threaded) {
-    load([&](Packet p) {
-      consume(p);
+    load([&](Packet packet) {
+      for (const TimedImuSample& s : packet.imu) estimator.AddImu(s);
+      for (const GnssSample& s : packet.gnss) estimator.AddGnss(s);
+      if (packet.left.empty()) return true;
+      ++result.frames_processed;
+      record(estimator.ProcessFrame(packet.t_ns, packet.left, packet.right));
       return true;
     });
   } else {
-    ThreadSafeQueue<Packet> queue(8);
-    std::exception_ptr loader_error;
-    std::thread loader([&] {
-      try {
-        load([&](Packet p) { return queue.Push(std::move(p)); });
-      } catch (...) {
-        loader_error = std::current_exception();
-      }
-      queue.Close();
-    });
-    try {
-      while (auto p = queue.Pop()) consume(*p);
-    } catch (...) {
-      queue.Close();
-      loader.join();
-      throw;
-    }
-    loader.join();
-    if (loader_error) std::rethrow_exception(loader_error);
+    // loader -> frontend -> backend, each in its own thread; the backend's feedback reaches the
+    // frontend through the estimator's mailbox.
+    RunThreeStages<Packet, TrackedPacket>(
+        8, load,
+        [&](Packet p) {
+          for (const TimedImuSample& s : p.imu) estimator.AddImu(s);
+          TrackedPacket out;
+          out.gnss = std::move(p.gnss);
+          if (!p.left.empty()) {
+            ++result.frames_processed;
+            out.frame = estimator.RunFrontend(p.t_ns, p.left, p.right);
+          }
+          return out;
+        },
+        [&](TrackedPacket p) {
+          for (const GnssSample& s : p.gnss) estimator.AddGnss(s);
+          if (p.frame) record(estimator.RunBackend(std::move(*p.frame)));
+        });
   }
   estimator.Finish();
   result.lost = estimator.lost_intervals();

@@ -2,10 +2,21 @@
 // the io layer, pairs
 // left/right images (same stamp within 1 ms; unpaired frames are skipped with a warning), feeds
 // the IMU up to each frame and runs the estimator.
-//   sequential mode: one thread, deterministic (tests, benchmarks);
-//   threaded mode:   a loader thread (csv + image decoding) feeds the estimator thread through a
-//                    bounded ThreadSafeQueue; results are identical (the estimator itself is
-//                    sequential), only faster.
+//   sequential mode: one thread, deterministic (same input, same output; tests, benchmarks):
+//                    load a frame, VioEstimator::ProcessFrame (frontend step then backend step);
+//   threaded mode:   three threads joined by bounded ThreadSafeQueues (8 packets each):
+//                    loader (csv + image decoding) -> frontend (VioEstimator::RunFrontend:
+//                    tracking, stereo matching, IMU preintegration) -> backend
+//                    (VioEstimator::RunBackend: initialisation, sliding window, failure handling,
+//                    GNSS; GNSS samples travel with the frames, in time order). The backend's
+//                    feedback (initialised or not, newest bias, rejected tracks) reaches the
+//                    frontend through a mailbox read when a message is there, so the frontend
+//                    may use feedback a few frames old: results are close to the sequential
+//                    ones but not identical, and may vary from run to run.
+//                    An exception in any thread stops all three (queues closed), they are joined
+//                    and it is rethrown to the caller.
+// Timing ("frontend", "backend", "backend_keyframe", "total"): "total" is the work of both
+// steps on a frame (in threaded mode their sum, excluding queue waits), not the latency.
 // The IMU (imu0 T_BS) is rotated into the body frame; body = IMU in EuRoC.
 #pragma once
 

@@ -1,8 +1,13 @@
 #include "optinav/vio/pipeline.h"
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <functional>
 #include <map>
+#include <utility>
 
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
@@ -57,21 +62,161 @@ TEST(Pipeline, EurocMicroInitialisesStaticallyAndDriftsLessThan2cm) {
   EXPECT_LT(ape.rmse, 0.02);
 }
 
-TEST(Pipeline, SequentialAndThreadedRunsAreIdentical) {
-  VioRunOptions options;
-  options.max_frames = 40;
+// APE RMSE (SE(3) alignment) of the body trajectory against the clip's ground truth.
+double ApeRmse(const std::vector<FrameEstimate>& estimates) {
+  eval::SyncedPair synced = eval::Synchronize(GroundTruth(), EstimatesToTrajectory(estimates));
+  eval::AlignTrajectory(synced.ref, &synced.est, {.mode = eval::AlignMode::kSe3});
+  std::vector<double> errors;
+  for (size_t i = 0; i < synced.est.size(); ++i)
+    errors.push_back((synced.est.positions[i] - synced.ref.positions[i]).norm());
+  return eval::ComputeStatistics(errors).rmse;
+}
+
+void ExpectTimingKeys(const VioRunResult& r) {
+  for (const char* stage : {"frontend", "backend", "backend_keyframe", "total"}) {
+    ASSERT_TRUE(r.timing.count(stage)) << stage;
+    EXPECT_GT(r.timing.at(stage).count, 0u) << stage;
+  }
+  // One "total" sample per frame handed to the estimator.
+  EXPECT_EQ(r.timing.at("total").count, r.frames_processed);
+  EXPECT_EQ(r.timing.at("frontend").count, r.frames_processed);
+}
+
+TEST(Pipeline, SequentialModeIsDeterministic) {
+  VioRunOptions options;  // threaded = false
   const VioRunResult a = RunVioOnEuroc(Micro(), options);
   const VioRunResult b = RunVioOnEuroc(Micro(), options);
-  options.threaded = true;
-  const VioRunResult c = RunVioOnEuroc(Micro(), options);
+  ASSERT_GT(a.estimates.size(), 80u);
   ASSERT_EQ(a.estimates.size(), b.estimates.size());
-  ASSERT_EQ(a.estimates.size(), c.estimates.size());
   for (size_t i = 0; i < a.estimates.size(); ++i) {
-    EXPECT_EQ(a.estimates[i].state.world_from_body.translation,
-              b.estimates[i].state.world_from_body.translation);
-    EXPECT_EQ(a.estimates[i].state.world_from_body.translation,
-              c.estimates[i].state.world_from_body.translation);
+    const StateEstimate &x = a.estimates[i].state, &y = b.estimates[i].state;
+    EXPECT_EQ(x.t_ns, y.t_ns);
+    EXPECT_EQ(x.world_from_body.translation, y.world_from_body.translation);
+    EXPECT_EQ(x.world_from_body.rotation.coeffs(), y.world_from_body.rotation.coeffs());
+    EXPECT_EQ(x.velocity, y.velocity);
+    EXPECT_EQ(x.bias.gyro, y.bias.gyro);
+    EXPECT_EQ(x.bias.accel, y.bias.accel);
+    EXPECT_EQ(a.estimates[i].keyframe, b.estimates[i].keyframe);
   }
+  EXPECT_EQ(a.initializations, b.initializations);
+  EXPECT_EQ(a.lost.size(), b.lost.size());
+  ExpectTimingKeys(a);
+}
+
+TEST(Pipeline, ThreadedModeIsCloseToSequential) {
+  VioRunOptions options;
+  const VioRunResult seq = RunVioOnEuroc(Micro(), options);
+  options.threaded = true;
+  const VioRunResult thr = RunVioOnEuroc(Micro(), options);
+  EXPECT_EQ(thr.frames_processed, seq.frames_processed);
+  EXPECT_EQ(thr.first_init_kind, seq.first_init_kind);
+  EXPECT_TRUE(thr.lost.empty());
+  ASSERT_GT(thr.estimates.size(), 80u);
+  // The frontend may use backend feedback a frame or two old: close, not identical.
+  std::map<int64_t, Eigen::Vector3d> seq_positions;
+  for (const FrameEstimate& e : seq.estimates)
+    seq_positions[e.state.t_ns] = e.state.world_from_body.translation;
+  double max_diff = 0;
+  size_t common = 0;
+  for (const FrameEstimate& e : thr.estimates) {
+    const auto it = seq_positions.find(e.state.t_ns);
+    if (it == seq_positions.end()) continue;
+    ++common;
+    max_diff = std::max(max_diff, (e.state.world_from_body.translation - it->second).norm());
+  }
+  const double ape_seq = ApeRmse(seq.estimates), ape_thr = ApeRmse(thr.estimates);
+  std::printf(
+      "V1_01_micro threaded vs sequential: %zu / %zu estimates (%zu common stamps), max position "
+      "difference %.2e m (< 5e-3), APE RMSE (SE3) %.5f m vs %.5f m (difference < 2e-3); total "
+      "per frame median %.1f ms vs %.1f ms\n",
+      thr.estimates.size(), seq.estimates.size(), common, max_diff, ape_thr, ape_seq,
+      thr.timing.at("total").median_s * 1e3, seq.timing.at("total").median_s * 1e3);
+  EXPECT_GE(common + 3, seq.estimates.size());
+  EXPECT_LT(max_diff, 5e-3);
+  EXPECT_LT(std::abs(ape_thr - ape_seq), 2e-3);
+  ExpectTimingKeys(thr);
+}
+
+// A copy of the clip (files symlinked, csv lines of images the clip does not ship removed) where
+// one left image is replaced.
+std::string MicroWithBadImage(const std::string& name, size_t frame,
+                              const std::function<void(const std::string&)>& write) {
+  namespace fs = std::filesystem;
+  const fs::path dir = optinav::testing::MakeTempDir(name) / "V1_01_micro";
+  const fs::path src = Micro();
+  for (const auto& entry : fs::recursive_directory_iterator(src)) {
+    const fs::path target = dir / fs::relative(entry.path(), src);
+    if (entry.is_directory())
+      fs::create_directories(target);
+    else
+      fs::create_symlink(entry.path(), target);
+  }
+  for (const char* cam : {"cam0", "cam1"}) {
+    const fs::path csv = dir / "mav0" / cam / "data.csv";
+    std::ifstream in(src / "mav0" / cam / "data.csv");
+    std::string text, line;
+    while (std::getline(in, line)) {
+      const size_t comma = line.find(',');
+      if (line.empty() || line[0] == '#' || comma == std::string::npos ||
+          fs::exists(src / "mav0" / cam / "data" / line.substr(comma + 1)))
+        text += line + "\n";
+    }
+    fs::remove(csv);
+    optinav::testing::WriteFile(csv, text);
+  }
+  const io::EurocDataset ds = io::OpenEurocDataset(dir.string());
+  const std::string image = ds.cam0->images.at(frame).path;
+  fs::remove(image);
+  write(image);
+  return dir.string();
+}
+
+// Runs in both modes; returns the two error messages ("" when no error).
+std::pair<std::string, std::string> ErrorsOfBothModes(const std::string& dataset,
+                                                      VioRunOptions options) {
+  std::pair<std::string, std::string> messages;
+  for (const bool threaded : {false, true}) {
+    options.threaded = threaded;
+    std::string& message = threaded ? messages.second : messages.first;
+    try {
+      RunVioOnEuroc(dataset, options);
+    } catch (const Error& e) {
+      message = e.what();
+    }
+  }
+  return messages;
+}
+
+TEST(Pipeline, ThreadedModeReportsErrorsLikeSequential) {
+  // Wrong size at frame 50: the loader thread throws; the frontend and backend threads stop.
+  const std::string small = MicroWithBadImage("vio_small_image", 50, [](const std::string& path) {
+    cv::imwrite(path, cv::Mat(10, 10, CV_8UC1, cv::Scalar(0)));
+  });
+  const auto [seq, thr] = ErrorsOfBothModes(small, VioRunOptions{});
+  std::printf("wrong-size image: '%s'\n", thr.c_str());
+  EXPECT_NE(seq.find("image is 10x10"), std::string::npos) << seq;
+  EXPECT_EQ(thr, seq);
+  // An unreadable image: an error when missing images are not skipped ...
+  const std::string garbage =
+      MicroWithBadImage("vio_garbage_image", 20, [](const std::string& path) {
+        std::FILE* f = std::fopen(path.c_str(), "wb");
+        std::fputs("not a png", f);
+        std::fclose(f);
+      });
+  VioRunOptions strict;
+  strict.skip_missing_images = false;
+  const auto [seq2, thr2] = ErrorsOfBothModes(garbage, strict);
+  EXPECT_NE(seq2.find("cannot read image"), std::string::npos) << seq2;
+  EXPECT_EQ(thr2, seq2);
+  // ... else the frame is skipped in both modes.
+  VioRunOptions lenient;
+  lenient.max_frames = 40;
+  const VioRunResult a = RunVioOnEuroc(garbage, lenient);
+  lenient.threaded = true;
+  const VioRunResult b = RunVioOnEuroc(garbage, lenient);
+  EXPECT_EQ(a.frames_processed, 39u);
+  EXPECT_EQ(b.frames_processed, 39u);
+  EXPECT_EQ(b.estimates.size(), a.estimates.size());
 }
 
 TEST(Pipeline, StereoOnlyModeRuns) {
