@@ -278,6 +278,8 @@ expect_error "vio gnss zero sigma" "--gnss-sigma" "$BIN" vio --dataset "$MICRO" 
 printf '#timestamp [ns],x,y,z\n1403715273262142976,0,0,0\n1403715273362142976,0,0,0\n1403715273312142976,0,0,0\n' > "$WORK/g_bad.csv"
 expect_error "vio gnss unsorted stamps" "g_bad.csv:4" "$BIN" vio --dataset "$MICRO" --gnss \
   --gnss-file "$WORK/g_bad.csv" --out "$WORK/x.tum"
+expect_error "vio gnss bad walk" "--gnss-walk" "$BIN" vio --dataset "$MICRO" --gnss \
+  --gnss-file "$WORK/gnss_llh.csv" --gnss-walk 0.1 --out "$WORK/x.tum"
 printf '#timestamp [ns],x,y,z\n' > "$WORK/g_empty.csv"
 expect_error "vio gnss empty file" "no usable GNSS sample" "$BIN" vio --dataset "$MICRO" --gnss \
   --gnss-file "$WORK/g_empty.csv" --out "$WORK/x.tum"
