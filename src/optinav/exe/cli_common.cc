@@ -20,13 +20,20 @@ geo::LatLon ParseLatLon(const std::string& text, const std::string& option) {
   return {lat, lon};
 }
 
-Eigen::Vector3d ParseTriple(const std::string& text, const std::string& option) {
+std::vector<double> ParseNumbers(const std::string& text, size_t count, const std::string& form,
+                                 const std::string& option) {
   std::vector<std::string_view> f;
   io::SplitFields(text, ',', &f);
-  if (f.size() != 3) throw Error("expected three numbers A,B,C, got '" + text + "'", {.field = option});
-  Eigen::Vector3d v;
-  for (int i = 0; i < 3; ++i) v[i] = io::ParseFiniteDouble(f[i], {.field = option});
+  if (f.size() != count)
+    throw Error("expected " + form + ", got '" + text + "'", {.field = option});
+  std::vector<double> v;
+  for (std::string_view field : f) v.push_back(io::ParseFiniteDouble(field, {.field = option}));
   return v;
+}
+
+Eigen::Vector3d ParseTriple(const std::string& text, const std::string& option) {
+  const std::vector<double> v = ParseNumbers(text, 3, "three numbers A,B,C", option);
+  return {v[0], v[1], v[2]};
 }
 
 }  // namespace optinav

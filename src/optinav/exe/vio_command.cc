@@ -1,4 +1,5 @@
 // optinav vio: stereo visual-inertial odometry on a EuRoC/ASL dataset.
+#include <cmath>
 #include <cstdio>
 
 #include <CLI/CLI.hpp>
@@ -232,23 +233,19 @@ int RunVio(int argc, char** argv) {
       if (gnss_gate != -1) g.gate_chi2 = gnss_gate;
       if (gnss_init_distance != -1) g.init_min_distance_m = gnss_init_distance;
       if (!gnss_drift.empty()) {
-        std::vector<std::string_view> f;
-        io::SplitFields(gnss_drift, ',', &f);
-        if (f.size() != 2)
-          throw Error("expected SAMPLES,CHI2, got '" + gnss_drift + "'",
+        const std::vector<double> v =
+            ParseNumbers(gnss_drift, 2, "SAMPLES,CHI2", "--gnss-drift-test");
+        if (v[0] != std::floor(v[0]) || !(v[0] >= 1))
+          throw Error(fmt::format("SAMPLES must be a whole number >= 1, got {}", v[0]),
                       {.field = "--gnss-drift-test"});
-        g.drift_window_samples =
-            static_cast<int>(io::ParseFiniteDouble(f[0], {.field = "--gnss-drift-test"}));
-        g.drift_test_chi2 = io::ParseFiniteDouble(f[1], {.field = "--gnss-drift-test"});
+        g.drift_window_samples = static_cast<int>(v[0]);
+        g.drift_test_chi2 = v[1];
       }
       if (!gnss_walk.empty()) {
-        std::vector<std::string_view> f;
-        io::SplitFields(gnss_walk, ',', &f);
-        if (f.size() != 2)
-          throw Error("expected M_PER_SQRT_M,RAD_PER_SQRT_M, got '" + gnss_walk + "'",
-                      {.field = "--gnss-walk"});
-        g.alignment_walk_m_per_sqrt_m = io::ParseFiniteDouble(f[0], {.field = "--gnss-walk"});
-        g.alignment_walk_rad_per_sqrt_m = io::ParseFiniteDouble(f[1], {.field = "--gnss-walk"});
+        const std::vector<double> v =
+            ParseNumbers(gnss_walk, 2, "M_PER_SQRT_M,RAD_PER_SQRT_M", "--gnss-walk");
+        g.alignment_walk_m_per_sqrt_m = v[0];
+        g.alignment_walk_rad_per_sqrt_m = v[1];
       }
       if (const std::string e = g.Check(); !e.empty()) throw Error(e, {.field = "--gnss"});
       options.gnss = g;
