@@ -10,6 +10,7 @@
 #include "optinav/util/config.h"
 #include "optinav/util/error.h"
 #include "optinav/util/logging.h"
+#include "optinav/vio/vi_alignment.h"
 
 namespace optinav::vio {
 
@@ -33,6 +34,10 @@ std::string VioOptions::Check() const {
   if (!(motion_init_tilt_sigma_rad > 0) || !(motion_init_velocity_sigma_m_s > 0) ||
       !(motion_init_accel_bias_sigma > 0))
     return "motion_init sigmas must be > 0";
+  if (!(motion_init_window_s >= 0 && motion_init_window_s <= 2.5))
+    return "motion_init_window_s must be in [0, 2.5]";
+  if (!(motion_init_aligned_tilt_sigma_rad > 0) || !(motion_init_aligned_velocity_sigma_m_s > 0))
+    return "motion_init_aligned sigmas must be > 0";
   if (!(max_frame_gap_s > 0) || !(max_imu_gap_s > 0)) return "max gaps must be > 0";
   if (min_tracked_landmarks < 0) return "min_tracked_landmarks must be >= 0";
   if (!(max_weak_tracking_s >= 0)) return "max_weak_tracking_s must be >= 0";
@@ -94,7 +99,10 @@ VioOptions LoadVioOptions(const std::string& path) {
         {"min_init_stereo_features", &o.min_init_stereo_features},
         {"motion_init_tilt_sigma_rad", &o.motion_init_tilt_sigma_rad},
         {"motion_init_velocity_sigma_m_s", &o.motion_init_velocity_sigma_m_s},
-        {"motion_init_accel_bias_sigma", &o.motion_init_accel_bias_sigma}}},
+        {"motion_init_accel_bias_sigma", &o.motion_init_accel_bias_sigma},
+        {"motion_init_window_s", &o.motion_init_window_s},
+        {"motion_init_aligned_tilt_sigma_rad", &o.motion_init_aligned_tilt_sigma_rad},
+        {"motion_init_aligned_velocity_sigma_m_s", &o.motion_init_aligned_velocity_sigma_m_s}}},
       {"failure",
        {{"max_frame_gap_s", &o.max_frame_gap_s},
         {"max_imu_gap_s", &o.max_imu_gap_s},
@@ -253,6 +261,7 @@ void VioEstimator::Lose(int64_t t_ns, const std::string& reason) {
   }
   spdlog::warn("vio: tracking lost at {:.3f} s: {}", t_ns * 1e-9, reason);
   backend_.Reset();
+  ResetMotionInit();
   posted_rejected_ = 0;
   if (gnss_) gnss_->OnTrackLost();
   weak_since_s_ = -1;
@@ -266,10 +275,13 @@ void VioEstimator::Finish() {
   }
 }
 
-bool VioEstimator::TryInitialize(int64_t t_ns, const FrontendOutput& features) {
+bool VioEstimator::TryInitialize(const FramePacket& packet) {
+  const int64_t t_ns = packet.t_ns;
+  const FrontendOutput& features = packet.features;
   int stereo = 0;
   for (const StereoObservation& o : features.observations) stereo += o.right ? 1 : 0;
-  if (stereo < options_.min_init_stereo_features) return false;
+  // (A running in-motion alignment window tracks on through frames with fewer.)
+  if (stereo < options_.min_init_stereo_features && !init_odometry_) return false;
   StateEstimate state;
   state.t_ns = t_ns;
   double tilt_sigma = -1, velocity_sigma = -1, accel_bias_sigma = -1;
@@ -278,8 +290,11 @@ bool VioEstimator::TryInitialize(int64_t t_ns, const FrontendOutput& features) {
     std::vector<const TimedImuSample*> window;
     for (const TimedImuSample& s : backend_imu_)
       if (s.t_ns >= t0 && s.t_ns <= t_ns) window.push_back(&s);
-    if (window.size() < 10 || window.front()->t_ns > t0 + (t_ns - t0) / 5) return false;
-    if (ImuProblem(backend_imu_, window.front()->t_ns, t_ns)) return false;
+    if (window.size() < 10 || window.front()->t_ns > t0 + (t_ns - t0) / 5 ||
+        ImuProblem(backend_imu_, window.front()->t_ns, t_ns)) {
+      ResetMotionInit();
+      return false;
+    }
     Eigen::Vector3d mg = Eigen::Vector3d::Zero(), ma = Eigen::Vector3d::Zero();
     for (const auto* s : window) mg += s->gyro, ma += s->accel;
     mg /= window.size();
@@ -310,18 +325,23 @@ bool VioEstimator::TryInitialize(int64_t t_ns, const FrontendOutput& features) {
         world_from_body;
     state.world_from_body.rotation = world_from_body.normalized();
     if (still) {
+      ResetMotionInit();
       state.bias.gyro = mg;
       state.bias.accel =
           ma - state.world_from_body.rotation.conjugate() * -options_.backend.gravity;
       last_init_kind_ = "static";
+    } else if (options_.motion_init_window_s > 0) {
+      if (!MotionInitStep(packet)) return false;
+      last_init_kind_ = "in-motion-aligned";
     } else {
       state.bias = last_good_ ? last_good_->bias : ImuBias{};
       tilt_sigma = options_.motion_init_tilt_sigma_rad;
       velocity_sigma = options_.motion_init_velocity_sigma_m_s;
       accel_bias_sigma = options_.motion_init_accel_bias_sigma;
-      last_init_kind_ = "in-motion";
+      last_init_kind_ = "in-motion-priors";
     }
-    if (gnss_) gnss_->OnTrackStarted(!still);
+    // Only the loose-prior start has a transient the GNSS alignment must wait out.
+    if (gnss_) gnss_->OnTrackStarted(last_init_kind_ == "in-motion-priors");
     spdlog::info(
         "vio: {} initialisation at {:.3f} s (gyro std {:.4f} rad/s, accel std {:.3f} "
         "m/s^2, {} stereo features)",
@@ -330,8 +350,12 @@ bool VioEstimator::TryInitialize(int64_t t_ns, const FrontendOutput& features) {
     if (last_good_) state.world_from_body = last_good_->world_from_body;
     last_init_kind_ = "stereo";
   }
-  if (last_good_) state.world_from_body.translation = last_good_->world_from_body.translation;
-  backend_.Initialize(state, features.observations, tilt_sigma, velocity_sigma, accel_bias_sigma);
+  // (The aligned start initialised the window already, its first frame at the last good position.)
+  if (last_init_kind_ != "in-motion-aligned") {
+    if (last_good_) state.world_from_body.translation = last_good_->world_from_body.translation;
+    backend_.Initialize(state, features.observations, tilt_sigma, velocity_sigma,
+                        accel_bias_sigma);
+  }
   ++initializations_;
   if (lost_since_ns_) {
     lost_.push_back({*lost_since_ns_, t_ns, *lost_reason_});
@@ -339,6 +363,119 @@ bool VioEstimator::TryInitialize(int64_t t_ns, const FrontendOutput& features) {
                  *lost_reason_);
     lost_since_ns_.reset();
   }
+  return true;
+}
+
+void VioEstimator::ResetMotionInit() {
+  init_odometry_.reset();
+  init_frames_.clear();
+}
+
+bool VioEstimator::MotionInitStep(const FramePacket& packet) {
+  const Timer timer;
+  struct AddTime {
+    TimingStats& timing;
+    const Timer& timer;
+    ~AddTime() { timing.Add("init_odometry", timer.ElapsedSeconds()); }
+  } add_time{timing_, timer};
+  const int64_t t_ns = packet.t_ns;
+  const FrontendOutput& features = packet.features;
+  if (packet.problem) ResetMotionInit();
+  if (init_odometry_) {
+    const StateEstimate e =
+        init_odometry_->AddFrame(t_ns, ImuPreintegration(ImuBias{}, imu_noise_),
+                                 features.observations, features.keyframe);
+    const bool finite = e.world_from_body.translation.allFinite() &&
+                        e.world_from_body.rotation.coeffs().allFinite();
+    if (finite &&
+        init_odometry_->stats().newest_constrained_landmarks >= options_.min_tracked_landmarks) {
+      init_frames_.push_back({t_ns, e.world_from_body, features.observations, features.keyframe});
+    } else {
+      spdlog::debug("vio: in-motion alignment odometry lost at {:.3f} s, restarting", t_ns * 1e-9);
+      ResetMotionInit();
+    }
+  }
+  if (!init_odometry_) {
+    int stereo = 0;
+    for (const StereoObservation& o : features.observations) stereo += o.right ? 1 : 0;
+    if (stereo < options_.min_init_stereo_features) return false;
+    BackendOptions odometry = options_.backend;
+    odometry.use_imu = false;
+    init_odometry_ =
+        std::make_unique<SlidingWindowBackend>(odometry, MakeExtrinsics(rig_, body_from_cam0_));
+    StateEstimate first;
+    first.t_ns = t_ns;
+    init_odometry_->Initialize(first, features.observations);
+    init_frames_.push_back({t_ns, first.world_from_body, features.observations, true});
+    return false;
+  }
+  const int64_t first_ns = init_frames_.front().t_ns;
+  if ((t_ns - first_ns) * 1e-9 < options_.motion_init_window_s) return false;
+  // The IMU between consecutive odometry frames, at the prior bias.
+  const ImuBias prior = last_good_ ? last_good_->bias : ImuBias{};
+  if (const auto problem = ImuProblem(backend_imu_, first_ns, t_ns)) {
+    spdlog::debug("vio: in-motion alignment window has an IMU problem ({}), restarting", *problem);
+    ResetMotionInit();
+    return false;
+  }
+  std::vector<int64_t> times;
+  std::vector<Rigid3d> poses;
+  std::vector<ImuPreintegration> pre;
+  for (const MotionInitFrame& f : init_frames_) {
+    if (!times.empty()) pre.push_back(Preintegrate(backend_imu_, times.back(), f.t_ns, prior));
+    times.push_back(f.t_ns);
+    poses.push_back(f.vo_from_body);
+  }
+  ViAlignmentOptions alignment_options;
+  alignment_options.accel_bias_sigma = options_.motion_init_accel_bias_sigma;
+  const ViAlignmentResult r = SolveViAlignment(times, poses, std::move(pre), alignment_options);
+  if (!r.ok) {
+    spdlog::info("vio: in-motion alignment at {:.3f} s failed: {}; sliding on", t_ns * 1e-9,
+                 r.failure);
+    init_frames_.erase(init_frames_.begin(), init_frames_.begin() + init_frames_.size() / 2);
+    return false;
+  }
+  // world_from_vo: gravity down, the first odometry frame at the last good position and yaw
+  // (the origin and yaw 0 on the first start).
+  Eigen::Quaterniond rotation = r.world_from_vo;
+  const double target_yaw = last_good_ ? Yaw(last_good_->world_from_body.rotation) : 0.0;
+  rotation = Eigen::AngleAxisd(target_yaw - Yaw(rotation * poses.front().rotation),
+                               Eigen::Vector3d::UnitZ()) *
+             rotation;
+  const Eigen::Vector3d origin =
+      last_good_ ? last_good_->world_from_body.translation : Eigen::Vector3d::Zero();
+  const Rigid3d world_from_vo(rotation.normalized(),
+                              origin - rotation * poses.front().translation);
+  ImuBias bias = prior;
+  bias.gyro = r.gyro_bias;
+  StateEstimate first;
+  first.t_ns = times.front();
+  first.world_from_body = world_from_vo * poses.front();
+  first.velocity = world_from_vo.rotation * r.velocities_vo.front();
+  first.bias = bias;
+  const double tilt_sigma =
+      std::max(options_.motion_init_aligned_tilt_sigma_rad, r.tilt_sigma_rad);
+  const double velocity_sigma =
+      std::max(options_.motion_init_aligned_velocity_sigma_m_s, r.first_velocity_sigma_m_s);
+  spdlog::info(
+      "vio: in-motion alignment over {:.2f} s ({} frames): free gravity norm {:.3f} m/s^2, "
+      "tilt sigma {:.2f} deg, gyro bias [{:.4f} {:.4f} {:.4f}] rad/s, first speed {:.2f} m/s "
+      "(sigma {:.2f}), whitened residual RMS {:.2f}",
+      (t_ns - first_ns) * 1e-9, times.size(), r.unconstrained_gravity_norm,
+      tilt_sigma * 180 / M_PI, bias.gyro.x(), bias.gyro.y(), bias.gyro.z(),
+      first.velocity.norm(), velocity_sigma, r.whitened_rms);
+  // The window from the run's first frame, then the run's frames again, now with the IMU.
+  backend_.Initialize(first, init_frames_.front().observations, tilt_sigma, velocity_sigma,
+                      options_.motion_init_accel_bias_sigma);
+  delayed_.push_back(FrameEstimate{backend_.Newest(), true, std::nullopt});
+  for (size_t k = 1; k < init_frames_.size(); ++k) {
+    const MotionInitFrame& f = init_frames_[k];
+    const StateEstimate e = backend_.AddFrame(
+        f.t_ns, Preintegrate(backend_imu_, times[k - 1], f.t_ns, backend_.Newest().bias),
+        f.observations, f.keyframe || k + 1 == init_frames_.size());
+    if (k + 1 < init_frames_.size()) delayed_.push_back(FrameEstimate{e, f.keyframe, std::nullopt});
+  }
+  ResetMotionInit();
   return true;
 }
 
@@ -424,7 +561,7 @@ std::optional<FrameEstimate> VioEstimator::RunBackend(FramePacket packet) {
   std::optional<FrameEstimate> result = [&]() -> std::optional<FrameEstimate> {
     if (backend_.initialized() && packet.problem) Lose(t_ns, *packet.problem);
     if (!backend_.initialized()) {
-      if (!TryInitialize(t_ns, packet.features)) return std::nullopt;
+      if (!TryInitialize(packet)) return std::nullopt;
       last_good_ = backend_.Newest();
       if (gnss_) gnss_->OnFrame(*last_good_, &backend_);
       return FrameEstimate{*last_good_, true, gnss_ ? gnss_->alignment() : std::nullopt};

@@ -17,9 +17,17 @@
 //
 // Initialisation (stereo-imu): when the IMU window before a frame is still (standard deviations
 // of the 0.1 s block means of gyro and accel under thresholds), gravity is the mean specific force,
-// the gyro bias the mean angular rate, velocity zero ("static"). Otherwise ("in motion") attitude
-// comes from the mean specific force over the window and velocity is left to the window to
-// estimate, with loose priors on tilt and velocity and a tight one on the accelerometer bias.
+// the gyro bias the mean angular rate, velocity zero ("static"). Otherwise ("in motion", when
+// motion_init_window_s > 0) a stereo-only odometry (a second backend without IMU) runs for
+// motion_init_window_s; its poses and the IMU preintegrated between them give the gyro bias,
+// gravity and the velocities in closed form (vi_alignment.h). The window then starts at the first
+// frame of that run with those values as priors ("in-motion-aligned") and the run's frames are
+// re-run through it with the IMU (so the odometry's own errors do not become priors); their
+// estimates are output once the alignment succeeds (TakeDelayedEstimates).
+// A run whose alignment fails slides on (its oldest half dropped). With motion_init_window_s = 0
+// ("in-motion-priors"): attitude from the mean specific force over the window, velocity left to
+// the window to estimate, with loose priors on tilt and velocity and a tight one on the
+// accelerometer bias.
 // In stereo mode the first pose is the identity (the world is the first body frame) and the pose
 // prior is tight.
 // Failure handling: a frame-time jump, an IMU gap, too few constrained landmarks for too long, or
@@ -34,6 +42,7 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -65,6 +74,12 @@ struct VioOptions {
   double motion_init_velocity_sigma_m_s = 5.0;
   // In motion, tilt and accelerometer bias are confounded at first: a tight bias prior.
   double motion_init_accel_bias_sigma = 0.05;
+  // Closed-form in-motion initialisation: seconds of stereo odometry aligned with the IMU
+  // (0: the loose-prior initialisation above). At most 2.5 s (the IMU kept for it).
+  double motion_init_window_s = 1.0;
+  // Floor of the tilt prior after the alignment (its own estimate is used when larger), rad.
+  double motion_init_aligned_tilt_sigma_rad = 0.005;
+  double motion_init_aligned_velocity_sigma_m_s = 0.1;
   // Failure detection.
   double max_frame_gap_s = 0.5;      // larger jumps between frames end the track
   double max_imu_gap_s = 0.05;       // larger gaps between IMU samples end the track
@@ -134,6 +149,10 @@ class VioEstimator {
   std::optional<FrameEstimate> RunBackend(FramePacket packet);
   // Closes an open lost interval at the end of the data.
   void Finish();
+  // Estimates of earlier frames made available by the last RunBackend (the frames of a
+  // successful in-motion alignment window, in time order, all before that call's frame); the
+  // caller takes them once (backend thread).
+  std::vector<FrameEstimate> TakeDelayedEstimates() { return std::exchange(delayed_, {}); }
 
   // GNSS fusion (stereo-imu mode only): enable before the first frame, then feed samples in
   // time order, interleaved with the frames (a sample is used once a frame covers its time).
@@ -147,7 +166,12 @@ class VioEstimator {
   const std::string& last_init_kind() const { return last_init_kind_; }
 
  private:
-  bool TryInitialize(int64_t t_ns, const FrontendOutput& features);
+  bool TryInitialize(const FramePacket& packet);
+  // One frame of the closed-form in-motion initialisation; true when it initialised the window.
+  // On success the window is initialised at the first frame of the odometry run and every later
+  // frame of the run (up to this one) is re-run through it with the IMU.
+  bool MotionInitStep(const FramePacket& packet);
+  void ResetMotionInit();
   void Lose(int64_t t_ns, const std::string& reason);
   void PostFeedback(bool with_rejected_tracks);
   // The IMU buffers: one per side, fed with the same samples in the same order.
@@ -183,6 +207,16 @@ class VioEstimator {
   int initializations_ = 0;
   std::string last_init_kind_;
   std::unique_ptr<GnssFusion> gnss_;
+  // Closed-form in-motion initialisation: the stereo odometry and its frames.
+  struct MotionInitFrame {
+    int64_t t_ns = 0;
+    Rigid3d vo_from_body;
+    std::vector<StereoObservation> observations;
+    bool keyframe = false;
+  };
+  std::unique_ptr<SlidingWindowBackend> init_odometry_;
+  std::vector<MotionInitFrame> init_frames_;
+  std::vector<FrameEstimate> delayed_;
 };
 
 }  // namespace optinav::vio

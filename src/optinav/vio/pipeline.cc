@@ -122,6 +122,8 @@ VioRunResult RunOnPairs(const camera::StereoRig& rig, const Rigid3d& body_from_c
   VioEstimator estimator(rig, body_from_cam0, noise, options.vio);
   if (options.gnss) estimator.EnableGnss(*options.gnss);
   auto record = [&](std::optional<FrameEstimate> e) {
+    // Earlier frames first (an in-motion alignment window, output when it succeeds).
+    for (FrameEstimate& d : estimator.TakeDelayedEstimates()) result.estimates.push_back(d);
     if (!e) return;
     if (result.first_init_kind.empty()) result.first_init_kind = estimator.last_init_kind();
     result.estimates.push_back(std::move(*e));

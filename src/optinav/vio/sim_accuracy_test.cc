@@ -98,9 +98,19 @@ TEST(SimAccuracy, DroneStereoInertial) {
       "drift (slope over distance) %.2f deg = %.2f deg/100 m (< 1); median frame %.1f ms\n",
       a.poses, a.init.c_str(), a.lost, a.path_m, a.ape_rmse_m, ate_percent, a.yaw_drift_deg,
       yaw_per_100m, r.timing.at("total").median_s * 1e3);
+  EXPECT_EQ(a.init, "in-motion-aligned");
   EXPECT_EQ(a.lost, 0u);
   EXPECT_LT(ate_percent, 0.5);
   EXPECT_LT(yaw_per_100m, 1.0);
+  // The loose-prior in-motion start on the same flight (the closed form's fallback).
+  VioRunOptions priors;
+  priors.vio.motion_init_window_s = 0;
+  const Accuracy b = Evaluate(dir, RunVioOnEuroc(dir, priors));
+  std::printf("same flight, loose-prior in-motion start: %s init, APE RMSE (SE3) %.3f m = %.2f %% "
+              "(< 0.5 %%)\n",
+              b.init.c_str(), b.ape_rmse_m, 100 * b.ape_rmse_m / b.path_m);
+  EXPECT_EQ(b.init, "in-motion-priors");
+  EXPECT_LT(100 * b.ape_rmse_m / b.path_m, 0.5);
 }
 
 TEST(SimAccuracy, CarStereoOnly) {
