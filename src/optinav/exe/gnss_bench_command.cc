@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "optinav/eval/metrics.h"
+#include "optinav/exe/cli_common.h"
 #include "optinav/exe/commands.h"
 #include "optinav/io/gnss_io.h"
 #include "optinav/io/text_parse.h"
@@ -33,19 +34,27 @@ namespace {
 
 struct Condition {
   std::string name;
+  std::string key;  // for --conditions
   double sigma_m = 0;         // noise added
   double factor_sigma_m = 0;  // sigma the fusion is told
   double outlier_fraction = 0;
   double outage_s = 0;  // duration, from outage_start_s of the sequence
 };
 
+// The fusion options of every fused run (--gnss-walk changes them before the runs start).
+vio::GnssFusionOptions& FusionDefaults() {
+  static vio::GnssFusionOptions o;
+  return o;
+}
+
 const std::vector<Condition>& Conditions() {
-  static const std::vector<Condition> c = {{"ideal", 0.0, 0.05, 0, 0},
-                                           {"sigma 0.5 m", 0.5, 0.5, 0, 0},
-                                           {"sigma 1.5 m", 1.5, 1.5, 0, 0},
-                                           {"sigma 3 m", 3.0, 3.0, 0, 0},
-                                           {"3 m + 10 % outliers", 3.0, 3.0, 0.10, 0},
-                                           {"3 m + 60 s outage", 3.0, 3.0, 0, 60.0}};
+  static const std::vector<Condition> c = {
+      {"ideal", "ideal", 0.0, 0.05, 0, 0},
+      {"sigma 0.5 m", "sigma0.5", 0.5, 0.5, 0, 0},
+      {"sigma 1.5 m", "sigma1.5", 1.5, 1.5, 0, 0},
+      {"sigma 3 m", "sigma3", 3.0, 3.0, 0, 0},
+      {"3 m + 10 % outliers", "outliers", 3.0, 3.0, 0.10, 0},
+      {"3 m + 60 s outage", "outage", 3.0, 3.0, 0, 60.0}};
   return c;
 }
 
@@ -169,7 +178,7 @@ RunResult RunOne(const Sequence& seq, const Condition* condition, const std::str
     vio::VioRunOptions options;
     options.threaded = false;
     if (condition) {
-      vio::GnssFusionOptions g;
+      vio::GnssFusionOptions g = FusionDefaults();
       g.norm = *vio::ParseGnssNorm(norm);
       g.lever_arm_in_body = seq.lever;
       options.gnss = g;
@@ -356,6 +365,7 @@ int RunGnssBench(int argc, char** argv) {
   CLI::App app{"GNSS fusion benchmark: the GNSS-VIO document's table on simulated flights",
                "optinav bench gnss"};
   std::string out, sequences = "room,outdoor", norms = "l2,huber,tukey", log_level = "warn";
+  std::string conditions = "ideal,sigma0.5,sigma1.5,sigma3,outliers,outage", walk;
   int seeds = 3, jobs = 2;
   double scale = 1.0;
   bool reuse = false;
@@ -363,6 +373,11 @@ int RunGnssBench(int argc, char** argv) {
   app.add_option("--seeds", seeds, "GNSS noise seeds per condition")->capture_default_str();
   app.add_option("--sequences", sequences, "room,outdoor (comma separated)")->capture_default_str();
   app.add_option("--norms", norms, "l2,huber,tukey (comma separated)")->capture_default_str();
+  app.add_option("--conditions", conditions, "GNSS conditions (comma separated)")
+      ->capture_default_str();
+  app.add_option("--gnss-walk", walk,
+                 "alignment random walk M_PER_SQRT_M,RAD_PER_SQRT_M for every fused run (default "
+                 "from GnssFusionOptions, as optinav vio --gnss-walk)");
   app.add_option("--scale", scale, "image size factor of the rendered sequences")
       ->capture_default_str();
   app.add_option("--jobs", jobs, "runs in parallel (each VIO run is single-threaded)")
@@ -385,6 +400,23 @@ int RunGnssBench(int argc, char** argv) {
         throw Error("unknown sequence '" + s + "'", {.field = "--sequences"});
     for (const std::string& n : norm_names)
       if (!vio::ParseGnssNorm(n)) throw Error("unknown norm '" + n + "'", {.field = "--norms"});
+    std::vector<const Condition*> selected;
+    for (const std::string& k : SplitList(conditions)) {
+      const auto it = std::find_if(Conditions().begin(), Conditions().end(),
+                                   [&](const Condition& c) { return c.key == k; });
+      if (it == Conditions().end())
+        throw Error("unknown condition '" + k +
+                        "' (ideal, sigma0.5, sigma1.5, sigma3, outliers, outage)",
+                    {.field = "--conditions"});
+      selected.push_back(&*it);
+    }
+    if (!walk.empty()) {
+      const std::vector<double> w =
+          ParseNumbers(walk, 2, "M_PER_SQRT_M,RAD_PER_SQRT_M", "--gnss-walk");
+      if (w[0] < 0 || w[1] < 0) throw Error("must be >= 0", {.field = "--gnss-walk"});
+      FusionDefaults().alignment_walk_m_per_sqrt_m = w[0];
+      FusionDefaults().alignment_walk_rad_per_sqrt_m = w[1];
+    }
     fs::create_directories(out);
     std::vector<Sequence> seqs;
     for (const std::string& s : seq_names) seqs.push_back(PrepareSequence(s, out, scale, reuse));
@@ -411,9 +443,9 @@ int RunGnssBench(int argc, char** argv) {
     };
     std::vector<Job> todo;
     for (const Sequence& s : seqs)
-      for (const Condition& c : Conditions())
+      for (const Condition* c : selected)
         for (const std::string& n : norm_names)
-          for (int seed = 1; seed <= seeds; ++seed) todo.push_back({&s, &c, n, seed});
+          for (int seed = 1; seed <= seeds; ++seed) todo.push_back({&s, c, n, seed});
     std::vector<RunResult> results(todo.size());
     std::atomic<size_t> next{0}, done{0};
     std::mutex print;
@@ -485,8 +517,8 @@ int RunGnssBench(int argc, char** argv) {
       table3 += r3 + "\n";
     };
     row("no GNSS", "-");
-    for (const Condition& c : Conditions())
-      for (const std::string& n : norm_names) row(c.name, n);
+    for (const Condition* c : selected)
+      for (const std::string& n : norm_names) row(c->name, n);
 
     std::string outage;
     for (const RunResult& r : runs) {

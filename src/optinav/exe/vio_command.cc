@@ -146,7 +146,9 @@ int RunVio(int argc, char** argv) {
   app.add_option("--gnss-gate", gnss_gate,
                  "chi-square gate, 3 DoF (default 16.27 = 99.9 %; 0: off)");
   app.add_option("--gnss-init-distance", gnss_init_distance,
-                 "horizontal distance before the ENU alignment is initialised, m (default 20)");
+                 fmt::format("horizontal distance before the ENU alignment is initialised, m "
+                             "(default {:g})",
+                             vio::GnssFusionOptions{}.init_min_distance_m));
   app.add_option("--gnss-walk", gnss_walk,
                  "VIO drift vs ENU as a random walk of the alignment per metre travelled: "
                  "M_PER_SQRT_M,RAD_PER_SQRT_M (default from GnssFusionOptions)");

@@ -610,11 +610,18 @@ void SlidingWindowBackend::MarginalizeOldest() {
   if (alignment_enabled_ && (alignment_walk_translation_ > 0 || alignment_walk_yaw_ > 0)) {
     const double d =
         (states_[1]->WorldFromBody().translation - oldest->WorldFromBody().translation).norm();
-    Eigen::Vector4d var;
-    var << Eigen::Vector3d::Constant(alignment_walk_translation_ * alignment_walk_translation_ * d),
-        alignment_walk_yaw_ * alignment_walk_yaw_ * d;
-    var = var.cwiseMax(1e-12);
-    prior_ = AddRandomWalk(prior_, alignment_, var.asDiagonal().toDenseMatrix());
+    // The VIO's heading drifts where the vehicle is, not about the world origin: the yaw part of
+    // the walk turns the alignment about the current position (the translation compensates, so
+    // far from the origin a yaw step does not move the current position by yaw x distance).
+    const Eigen::Vector3d c = states_[1]->WorldFromBody().translation;
+    const double cy = std::cos(alignment_[3]), sy = std::sin(alignment_[3]);
+    const Eigen::Vector2d rc(cy * c.x() - sy * c.y(), sy * c.x() + cy * c.y());
+    const Eigen::Vector4d g(rc.y(), -rc.x(), 0.0, 1.0);
+    Eigen::Matrix4d q = alignment_walk_yaw_ * alignment_walk_yaw_ * d * g * g.transpose();
+    q.diagonal().head<3>().array() +=
+        std::max(alignment_walk_translation_ * alignment_walk_translation_ * d, 1e-12);
+    q(3, 3) = std::max(q(3, 3), 1e-12);
+    prior_ = AddRandomWalk(prior_, alignment_, q);
   }
 
   // Remove what left the window.

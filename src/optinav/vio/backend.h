@@ -154,7 +154,7 @@ class SlidingWindowBackend {
   WorldAlignment alignment() const;
   // VIO drift relative to ENU, modelled as a random walk of the alignment with the distance
   // travelled: at each marginalisation its prior forgets sigma^2 = k^2 * distance (translation
-  // k in m/sqrt(m), yaw in rad/sqrt(m)).
+  // k in m/sqrt(m), yaw in rad/sqrt(m); the yaw turns about the current position).
   void SetAlignmentRandomWalk(double translation_per_sqrt_m, double yaw_per_sqrt_m) {
     alignment_walk_translation_ = translation_per_sqrt_m;
     alignment_walk_yaw_ = yaw_per_sqrt_m;

@@ -66,7 +66,7 @@ struct GnssFusionOptions {
   // init_max_chi2_per_axis (right after an in-motion VIO start, the first metres are off by
   // more than precise GNSS allows); otherwise the older half of the evidence is dropped.
   double init_min_inlier_fraction = 0.8;
-  // After an in-motion VIO start (OnTrackStarted(true)), samples within this time of the
+  // After a loose-prior in-motion VIO start (OnTrackStarted(true)), samples within this time of the
   // track's first frame are not used for the initialisation: the VIO's start-up transient
   // (velocity and attitude converging) would bias the alignment.
   double init_settle_s = 5.0;
@@ -128,7 +128,8 @@ class GnssFusion {
   // The VIO track was lost and the backend reset: the alignment is re-locked (loose prior) at
   // the first frame of the next track.
   void OnTrackLost();
-  // The VIO (re)initialised; `in_motion`: without a still IMU window (see init_settle_s).
+  // The VIO (re)initialised; `in_motion`: a loose-prior in-motion start, whose start-up
+  // transient the alignment waits out (init_settle_s); a static or closed-form start has none.
   void OnTrackStarted(bool in_motion) { settle_s_ = in_motion ? options_.init_settle_s : 0.0; }
 
   // The current estimate of enu_from_world, once initialised.
@@ -166,6 +167,7 @@ class GnssFusion {
   std::deque<int64_t> frames_waiting_;    // frame-interpolated mode
   std::vector<RejectedGnss> rejected_;
   GnssFusionStats stats_;
+  int64_t next_debug_ns_ = 0;  // the next periodic debug line
 };
 
 }  // namespace optinav::vio
