@@ -107,6 +107,7 @@ int RunVio(int argc, char** argv) {
                          gnss_origin, gnss_lever, gnss_walk, gnss_drift, wgs84_out, geojson_out,
                          rejected_out;
   double gnss_norm_param = -1, gnss_sigma = -1, gnss_gate = -1, gnss_init_distance = -1;
+  double gnss_init_yaw_sigma = -1;
   app.add_option("--dataset", dataset, "sequence folder (holding mav0/)")->required();
   app.add_option("--format", format, "dataset format: euroc|airsim (airsim: stereo-only)")
       ->capture_default_str();
@@ -145,6 +146,10 @@ int RunVio(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--gnss-gate", gnss_gate,
                  "chi-square gate, 3 DoF (default 16.27 = 99.9 %; 0: off)");
+  app.add_option("--gnss-init-yaw-sigma", gnss_init_yaw_sigma,
+                 fmt::format("yaw sigma (deg) the ENU alignment waits for (default {:g}; smaller: "
+                             "a later but steadier alignment)",
+                             vio::GnssFusionOptions{}.init_max_yaw_sigma_rad * 180 / M_PI));
   app.add_option("--gnss-init-distance", gnss_init_distance,
                  fmt::format("horizontal distance before the ENU alignment is initialised, m "
                              "(default {:g})",
@@ -234,6 +239,11 @@ int RunVio(int argc, char** argv) {
       g.lever_arm_in_body = gnss_input->lever_arm_in_body;
       if (gnss_gate != -1) g.gate_chi2 = gnss_gate;
       if (gnss_init_distance != -1) g.init_min_distance_m = gnss_init_distance;
+      if (gnss_init_yaw_sigma != -1) {
+        if (!(gnss_init_yaw_sigma > 0))
+          throw Error("must be > 0 (degrees)", {.field = "--gnss-init-yaw-sigma"});
+        g.init_max_yaw_sigma_rad = gnss_init_yaw_sigma * M_PI / 180;
+      }
       if (!gnss_drift.empty()) {
         const std::vector<double> v =
             ParseNumbers(gnss_drift, 2, "SAMPLES,CHI2", "--gnss-drift-test");

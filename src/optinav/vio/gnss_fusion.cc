@@ -53,6 +53,7 @@ std::string GnssFusionOptions::Check() const {
   if (!lever_arm_in_body.allFinite()) return "gnss lever arm must be finite";
   if (!(init_min_distance_m >= 0)) return "init_min_distance_m must be >= 0";
   if (!(init_max_yaw_sigma_rad > 0)) return "init_max_yaw_sigma_rad must be > 0";
+  if (!(init_max_yaw_effect_m >= 0)) return "init_max_yaw_effect_m must be >= 0";
   if (init_min_samples < 3) return "init_min_samples must be >= 3";
   if (!(init_min_inlier_fraction >= 0 && init_min_inlier_fraction <= 1))
     return "init_min_inlier_fraction must be in [0, 1]";
@@ -478,7 +479,11 @@ void GnssFusion::TryInitialize(SlidingWindowBackend* backend) {
     return;
   }
   const Eigen::Matrix4d cov = info.inverse();
-  if (!(std::sqrt(cov(3, 3)) <= options_.init_max_yaw_sigma_rad)) return;  // wait for more motion
+  // The yaw must be known (or its effect across the track negligible): wait for more motion.
+  const double yaw_sigma = std::sqrt(cov(3, 3));
+  if (!(yaw_sigma <= options_.init_max_yaw_sigma_rad ||
+        yaw_sigma * span <= options_.init_max_yaw_effect_m))
+    return;
   const size_t before = rejected_.size();
   std::vector<bool> inlier(n, false);
   for (int i : best) inlier[i] = true;
