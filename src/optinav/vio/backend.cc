@@ -69,6 +69,11 @@ std::string BackendOptions::Check() const {
     return "need 0 < min_depth_m < max_depth_m";
   if (max_iterations < 1) return "max_iterations must be >= 1";
   if (!(max_solver_time_s > 0)) return "max_solver_time_s must be > 0";
+  if (!(initial_trust_region_radius > 0))
+    return "initial_trust_region_radius must be > 0, got " +
+           std::to_string(initial_trust_region_radius);
+  if (!(function_tolerance > 0) || !(function_tolerance < 1))
+    return "function_tolerance must be in (0, 1), got " + std::to_string(function_tolerance);
   for (double s : {prior_position_sigma_m, prior_yaw_sigma_rad, prior_tilt_sigma_rad,
                    prior_velocity_sigma_m_s, prior_gyro_bias_sigma, prior_accel_bias_sigma})
     if (!(s > 0)) return "prior sigmas must be > 0";
@@ -392,6 +397,8 @@ ceres::Problem::Options ProblemOptions() {
 ceres::Solver::Options SolverOptions(const BackendOptions& options) {
   ceres::Solver::Options o;
   o.max_num_iterations = options.max_iterations;
+  o.initial_trust_region_radius = options.initial_trust_region_radius;
+  o.function_tolerance = options.function_tolerance;
   o.max_solver_time_in_seconds = options.max_solver_time_s;
   o.num_threads = 1;
   o.logging_type = ceres::SILENT;
