@@ -459,7 +459,7 @@ void SlidingWindowBackend::Optimize() {
   // blocks of a group by address, so packing makes that order the window's order (deterministic:
   // same input, same output). Without an explicit ordering Ceres picks the elimination set
   // greedily by degree, which also takes some speed-bias blocks; the mixed block sizes then
-  // defeat its fixed-size Schur kernels (2x3x6) and the elimination runs about 2x slower.
+  // send it from its fixed-size Schur kernels (2x3x6) to the slower dynamic-size ones.
   auto reprojection =
       BuildResiduals([](const State*) { return true; }, [](const Landmark*) { return true; });
   std::vector<double*> live;  // blocks in packed order

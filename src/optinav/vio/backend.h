@@ -47,7 +47,8 @@ struct BackendOptions {
   int max_iterations = 8;       // Levenberg-Marquardt iterations per frame
   // Levenberg-Marquardt's first damping is 1 / this radius (Ceres' default 1e4 damps the weakly
   // constrained directions, far landmark depths and the velocity/attitude they couple to, so
-  // hard that a window solve never converged in max_iterations; 1e6 converges in 3-6).
+  // hard that a window solve never converged in max_iterations; with 1e6 most converge in 3-6).
+  // Used by the window and the motion-only solves.
   double initial_trust_region_radius = 1e6;
   // A solve stops when an iteration lowers the cost by less than this fraction (Ceres' default
   // 1e-6 spends the last iterations on changes far below the noise).
