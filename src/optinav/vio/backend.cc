@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
+#include <memory>
 
 #include "optinav/camera/camera.h"
 #include "optinav/util/error.h"
@@ -67,6 +69,11 @@ std::string BackendOptions::Check() const {
     return "need 0 < min_depth_m < max_depth_m";
   if (max_iterations < 1) return "max_iterations must be >= 1";
   if (!(max_solver_time_s > 0)) return "max_solver_time_s must be > 0";
+  if (!(initial_trust_region_radius > 0))
+    return "initial_trust_region_radius must be > 0, got " +
+           std::to_string(initial_trust_region_radius);
+  if (!(function_tolerance > 0) || !(function_tolerance < 1))
+    return "function_tolerance must be in (0, 1), got " + std::to_string(function_tolerance);
   for (double s : {prior_position_sigma_m, prior_yaw_sigma_rad, prior_tilt_sigma_rad,
                    prior_velocity_sigma_m_s, prior_gyro_bias_sigma, prior_accel_bias_sigma})
     if (!(s > 0)) return "prior sigmas must be > 0";
@@ -390,6 +397,8 @@ ceres::Problem::Options ProblemOptions() {
 ceres::Solver::Options SolverOptions(const BackendOptions& options) {
   ceres::Solver::Options o;
   o.max_num_iterations = options.max_iterations;
+  o.initial_trust_region_radius = options.initial_trust_region_radius;
+  o.function_tolerance = options.function_tolerance;
   o.max_solver_time_in_seconds = options.max_solver_time_s;
   o.num_threads = 1;
   o.logging_type = ceres::SILENT;
@@ -444,43 +453,73 @@ void SlidingWindowBackend::OptimizeNewest() {
 }
 
 void SlidingWindowBackend::Optimize() {
-  ceres::Problem problem(ProblemOptions());
-  // Landmarks are added first and no explicit ordering is given: Ceres then picks the
-  // elimination set greedily in insertion order (stable, independent of addresses: a user
-  // ordering is a set of pointers, whose order would make runs differ), which selects exactly
-  // the landmarks.
+  // The solve runs on a packed copy of the window's values: landmarks (in order of first
+  // observation), then each state's pose and speed-bias in window order, then the alignment.
+  // The elimination ordering puts exactly the landmarks in the first group. Ceres orders the
+  // blocks of a group by address, so packing makes that order the window's order (deterministic:
+  // same input, same output). Without an explicit ordering Ceres picks the elimination set
+  // greedily by degree, which also takes some speed-bias blocks; the mixed block sizes then
+  // send it from its fixed-size Schur kernels (2x3x6) to the slower dynamic-size ones.
   auto reprojection =
       BuildResiduals([](const State*) { return true; }, [](const Landmark*) { return true; });
-  int num_landmarks = 0, num_observations = 0;
-  for (const auto& spec : reprojection) {
-    if (!problem.HasParameterBlock(spec->blocks[1])) {
-      problem.AddParameterBlock(spec->blocks[1], kPointSize);
-      ++num_landmarks;
+  std::vector<double*> live;  // blocks in packed order
+  std::vector<int> sizes;
+  std::vector<const ceres::Manifold*> manifolds;
+  std::map<const double*, size_t> index;  // live block -> position in `live`
+  auto add_block = [&](double* block, int size, const ceres::Manifold* manifold) {
+    if (index.emplace(block, live.size()).second) {
+      live.push_back(block);
+      sizes.push_back(size);
+      manifolds.push_back(manifold);
     }
-  }
+  };
+  for (const auto& spec : reprojection) add_block(spec->blocks[1], kPointSize, nullptr);
+  const size_t num_landmarks = live.size();
   for (const auto& s : states_) {
-    problem.AddParameterBlock(s->pose, kPoseSize, const_cast<ceres::Manifold*>(PoseManifold()));
-    if (options_.use_imu) problem.AddParameterBlock(s->speed_bias, kSpeedBiasSize);
+    add_block(s->pose, kPoseSize, PoseManifold());
+    if (options_.use_imu) add_block(s->speed_bias, kSpeedBiasSize, nullptr);
+  }
+  if (alignment_enabled_) add_block(alignment_, kAlignmentSize, nullptr);
+  std::vector<size_t> offset(live.size() + 1, 0);
+  for (size_t i = 0; i < live.size(); ++i) offset[i + 1] = offset[i] + sizes[i];
+  std::vector<double> packed(offset.back());
+  for (size_t i = 0; i < live.size(); ++i)
+    std::copy_n(live[i], sizes[i], packed.data() + offset[i]);
+  auto packed_of = [&](const double* block) { return packed.data() + offset[index.at(block)]; };
+  auto packed_blocks = [&](const std::vector<double*>& blocks) {
+    std::vector<double*> out;
+    out.reserve(blocks.size());
+    for (const double* b : blocks) out.push_back(packed_of(b));
+    return out;
+  };
+
+  ceres::Problem problem(ProblemOptions());
+  auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
+  for (size_t i = 0; i < live.size(); ++i) {
+    double* block = packed.data() + offset[i];
+    problem.AddParameterBlock(block, sizes[i], const_cast<ceres::Manifold*>(manifolds[i]));
+    ordering->AddElementToGroup(block, i < num_landmarks ? 0 : 1);
   }
   if (options_.use_imu) {
     for (size_t k = 1; k < states_.size(); ++k) {
       State& a = *states_[k - 1];
       State& b = *states_[k];
       if (!b.has_preintegration || b.preintegration.dt_s() <= 0) continue;
-      problem.AddResidualBlock(CreateImuFactor(b.preintegration, options_.gravity), nullptr, a.pose,
-                               a.speed_bias, b.pose, b.speed_bias);
+      problem.AddResidualBlock(CreateImuFactor(b.preintegration, options_.gravity), nullptr,
+                               packed_of(a.pose), packed_of(a.speed_bias), packed_of(b.pose),
+                               packed_of(b.speed_bias));
     }
   }
+  int num_observations = 0;
   for (auto& spec : reprojection) {
     problem.AddResidualBlock(spec->cost.release(), const_cast<ceres::LossFunction*>(spec->loss),
-                             spec->blocks);
+                             packed_blocks(spec->blocks));
     ++num_observations;
   }
-  if (alignment_enabled_) problem.AddParameterBlock(alignment_, kAlignmentSize);
   if (!prior_.empty()) {
     std::vector<double*> blocks;
     for (const auto& b : prior_.blocks) blocks.push_back(b.values);
-    problem.AddResidualBlock(prior_.CreateCostFunction(), nullptr, blocks);
+    problem.AddResidualBlock(prior_.CreateCostFunction(), nullptr, packed_blocks(blocks));
   }
   for (const auto& factor : timed_factors_) {
     ImuPreintegration anchor_to_t;
@@ -489,20 +528,24 @@ void SlidingWindowBackend::Optimize() {
     const std::vector<double*> blocks = TimedFactorBlocks(*factor, anchor);
     if (blocks.empty()) continue;
     problem.AddResidualBlock(factor->Create(anchor_to_t, options_.gravity, options_.use_imu),
-                             const_cast<ceres::LossFunction*>(factor->loss()), blocks);
+                             const_cast<ceres::LossFunction*>(factor->loss()),
+                             packed_blocks(blocks));
   }
   if (alignment_enabled_ && alignment_yaw_held_)
-    problem.SetManifold(alignment_, yaw_held_manifold_.get());
+    problem.SetManifold(packed_of(alignment_), yaw_held_manifold_.get());
 
   ceres::Solver::Options solver_options = SolverOptions(options_);
   if (num_landmarks > 0) {
     solver_options.linear_solver_type = ceres::DENSE_SCHUR;
+    solver_options.linear_solver_ordering = ordering;
   } else {
     solver_options.linear_solver_type = ceres::DENSE_QR;
   }
   ceres::Solver::Summary summary;
   ceres::Solve(solver_options, &problem, &summary);
-  stats_.num_landmarks = num_landmarks;
+  for (size_t i = 0; i < live.size(); ++i)
+    std::copy_n(packed.data() + offset[i], sizes[i], live[i]);
+  stats_.num_landmarks = static_cast<int>(num_landmarks);
   stats_.num_observations = num_observations;
   RecordSummary(summary);
   // Keep quaternions normalised (the manifold keeps them on the sphere up to rounding).

@@ -45,6 +45,14 @@ struct BackendOptions {
   double min_depth_m = 0.1;     // landmarks closer than this to a camera are rejected
   double max_depth_m = 200.0;   // stereo triangulation beyond this is not trusted
   int max_iterations = 8;       // Levenberg-Marquardt iterations per frame
+  // Levenberg-Marquardt's first damping is 1 / this radius (Ceres' default 1e4 damps the weakly
+  // constrained directions, far landmark depths and the velocity/attitude they couple to, so
+  // hard that a window solve never converged in max_iterations; with 1e6 most converge in 3-6).
+  // Used by the window and the motion-only solves.
+  double initial_trust_region_radius = 1e6;
+  // A solve stops when an iteration lowers the cost by less than this fraction (Ceres' default
+  // 1e-6 spends the last iterations on changes far below the noise).
+  double function_tolerance = 1e-4;
   double max_solver_time_s = 0.2;
   // Relinearise preintegration when the bias estimate moved more than this from the
   // linearisation bias.

@@ -84,6 +84,8 @@ VioOptions LoadVioOptions(const std::string& path) {
         {"max_depth_m", &b.max_depth_m},
         {"max_iterations", &b.max_iterations},
         {"max_solver_time_s", &b.max_solver_time_s},
+        {"initial_trust_region_radius", &b.initial_trust_region_radius},
+        {"function_tolerance", &b.function_tolerance},
         {"relinearize_gyro_bias", &b.relinearize_gyro_bias},
         {"relinearize_accel_bias", &b.relinearize_accel_bias},
         {"prior_position_sigma_m", &b.prior_position_sigma_m},

@@ -35,10 +35,16 @@ ceres::CostFunction* CreateImuFactor(const ImuPreintegration& preintegration,
 
 // Reprojection of a world point into a camera of the rig. `observed` is the undistorted
 // normalised image point (x/z, y/z); the residual is in pixels (scaled by focal_px / sigma_px).
-// Blocks: pose, point.
+// Blocks: pose, point. Analytic Jacobians (exact derivatives w.r.t. the 7 ambient pose
+// parameters; Ceres applies the pose manifold's PlusJacobian).
 ceres::CostFunction* CreateReprojectionFactor(const Rigid3d& cam_from_body,
                                               const Eigen::Vector2d& observed, double focal_px,
                                               double sigma_px);
+// The same residual differentiated by ceres::AutoDiffCostFunction (the reference the analytic
+// Jacobians of CreateReprojectionFactor are tested against).
+ceres::CostFunction* CreateAutoDiffReprojectionFactor(const Rigid3d& cam_from_body,
+                                                      const Eigen::Vector2d& observed,
+                                                      double focal_px, double sigma_px);
 
 // A linear (Gaussian) prior on a set of blocks around a linearisation point x0:
 //   r = r0 + J * Minus(x, x0)

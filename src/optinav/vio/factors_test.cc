@@ -1,0 +1,99 @@
+#include "optinav/vio/factors.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <memory>
+#include <random>
+
+#include <gtest/gtest.h>
+
+namespace optinav::vio {
+namespace {
+
+using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+struct Evaluation {
+  Eigen::Vector2d residual;
+  RowMatrix d_pose{2, kPoseSize}, d_point{2, kPointSize};
+};
+
+Evaluation Evaluate(const ceres::CostFunction& cost, const double* pose, const double* point) {
+  Evaluation e;
+  const double* parameters[2] = {pose, point};
+  double* jacobians[2] = {e.d_pose.data(), e.d_point.data()};
+  EXPECT_TRUE(cost.Evaluate(parameters, e.residual.data(), jacobians));
+  return e;
+}
+
+// Largest |a - b| relative to the largest entry of b (entries near zero are not divided by).
+double RelativeDifference(const RowMatrix& a, const RowMatrix& b) {
+  return (a - b).cwiseAbs().maxCoeff() / std::max(b.cwiseAbs().maxCoeff(), 1e-300);
+}
+
+TEST(Reprojection, AnalyticJacobianMatchesAutoDiff) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> uniform(-1.0, 1.0);
+  auto random_vector = [&](double scale) -> Eigen::Vector3d {
+    return Eigen::Vector3d(uniform(rng), uniform(rng), uniform(rng)) * scale;
+  };
+  auto random_rotation = [&]() {
+    return Eigen::Quaterniond(uniform(rng), uniform(rng), uniform(rng), uniform(rng)).normalized();
+  };
+  double worst_residual = 0, worst_pose = 0, worst_point = 0, worst_tangent = 0;
+  int in_front = 0;
+  for (int trial = 0; trial < 2000; ++trial) {
+    const Rigid3d cam_from_body(random_rotation(), random_vector(0.2));
+    const Rigid3d world_from_body(random_rotation(), random_vector(50.0));
+    // A point 0.5-40 m in front of the camera (some trials: behind it).
+    const Eigen::Vector3d p_in_cam(uniform(rng) * 10, uniform(rng) * 10,
+                                   trial % 10 == 0 ? -5.0 : 20.5 + 19.5 * uniform(rng));
+    const Eigen::Vector3d p_in_world = world_from_body * (cam_from_body.Inverse() * p_in_cam);
+    const Eigen::Vector2d observed =
+        p_in_cam.head<2>() / p_in_cam.z() + Eigen::Vector2d(uniform(rng), uniform(rng)) * 0.01;
+    double pose[kPoseSize] = {world_from_body.translation.x(),
+                              world_from_body.translation.y(),
+                              world_from_body.translation.z(),
+                              world_from_body.rotation.x(),
+                              world_from_body.rotation.y(),
+                              world_from_body.rotation.z(),
+                              world_from_body.rotation.w()};
+    // Some trials off the unit sphere: the ambient Jacobian must still be the exact derivative.
+    if (trial % 3 == 1)
+      for (int i = 3; i < 7; ++i) pose[i] *= 1.0 + 0.05 * uniform(rng);
+    const double point[kPointSize] = {p_in_world.x(), p_in_world.y(), p_in_world.z()};
+
+    const std::unique_ptr<ceres::CostFunction> analytic(
+        CreateReprojectionFactor(cam_from_body, observed, 450.0, 1.5));
+    const std::unique_ptr<ceres::CostFunction> autodiff(
+        CreateAutoDiffReprojectionFactor(cam_from_body, observed, 450.0, 1.5));
+    const Evaluation a = Evaluate(*analytic, pose, point);
+    const Evaluation b = Evaluate(*autodiff, pose, point);
+    worst_residual = std::max(worst_residual, (a.residual - b.residual).cwiseAbs().maxCoeff() /
+                                                  std::max(b.residual.cwiseAbs().maxCoeff(), 1.0));
+    if (p_in_cam.z() < 0) {
+      EXPECT_EQ(a.d_pose.cwiseAbs().maxCoeff(), 0.0);
+      EXPECT_EQ(a.d_point.cwiseAbs().maxCoeff(), 0.0);
+      continue;
+    }
+    ++in_front;
+    worst_pose = std::max(worst_pose, RelativeDifference(a.d_pose, b.d_pose));
+    worst_point = std::max(worst_point, RelativeDifference(a.d_point, b.d_point));
+    // What the solver uses: the Jacobian on the manifold's tangent space.
+    RowMatrix plus(kPoseSize, kPoseTangentSize);
+    PoseManifold()->PlusJacobian(pose, plus.data());
+    worst_tangent =
+        std::max(worst_tangent, RelativeDifference(a.d_pose * plus, RowMatrix(b.d_pose * plus)));
+  }
+  std::printf(
+      "analytic vs autodiff reprojection (%d points in front): residual %.1e, pose %.1e, "
+      "point %.1e, tangent %.1e (relative, < 1e-8)\n",
+      in_front, worst_residual, worst_pose, worst_point, worst_tangent);
+  EXPECT_GT(in_front, 1500);
+  EXPECT_LT(worst_residual, 1e-8);
+  EXPECT_LT(worst_pose, 1e-8);
+  EXPECT_LT(worst_point, 1e-8);
+  EXPECT_LT(worst_tangent, 1e-8);
+}
+
+}  // namespace
+}  // namespace optinav::vio
