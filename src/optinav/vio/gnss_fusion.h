@@ -64,7 +64,7 @@ struct GnssFusionOptions {
   double init_max_yaw_sigma_rad = 0.005;  // 0.3 deg
   // ... or when the yaw sigma times the track's horizontal span is below this (precise GNSS over
   // a small area: the yaw error moves no position by more).
-  double init_max_yaw_effect_m = 0.05;
+  double init_max_yaw_effect_m = 0.1;
   int init_min_samples = 10;
   // The initialisation also waits until the VIO track agrees with the GNSS: at least this
   // fraction of the samples are inliers and their mean chi-square per axis is at most
