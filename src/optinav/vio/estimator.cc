@@ -69,14 +69,19 @@ VioOptions LoadVioOptions(const std::string& path) {
         {"border_px", &f.border_px},
         {"keyframe_max_interval_s", &f.keyframe_max_interval_s},
         {"keyframe_min_tracked_ratio", &f.keyframe_min_tracked_ratio},
-        {"keyframe_min_parallax_px", &f.keyframe_min_parallax_px}}},
+        {"keyframe_min_parallax_px", &f.keyframe_min_parallax_px},
+        {"stereo_only_keyframe_min_tracked_ratio", &f.stereo_only_keyframe_min_tracked_ratio},
+        {"stereo_only_keyframe_min_parallax_px", &f.stereo_only_keyframe_min_parallax_px}}},
       {"backend",
        {{"window_keyframes", &b.window_keyframes},
         {"pixel_sigma", &b.pixel_sigma},
         {"huber_pixels", &b.huber_pixels},
         {"outlier_pixels", &b.outlier_pixels},
+        {"stereo_only_outlier_pixels", &b.stereo_only_outlier_pixels},
         {"min_depth_m", &b.min_depth_m},
         {"max_depth_m", &b.max_depth_m},
+        {"stereo_fixed_keyframes", &b.stereo_fixed_keyframes},
+        {"stereo_min_disparity_px", &b.stereo_min_disparity_px},
         {"max_iterations", &b.max_iterations},
         {"max_solver_time_s", &b.max_solver_time_s},
         {"relinearize_gyro_bias", &b.relinearize_gyro_bias},
@@ -154,6 +159,15 @@ BackendOptions WithMode(BackendOptions b, const VioOptions& o, const ImuNoise& n
   return b;
 }
 
+// Stereo-only mode: the frontend's stereo-only keyframe thresholds.
+FrontendOptions FrontendForMode(FrontendOptions f, VioMode mode) {
+  if (mode == VioMode::kStereo) {
+    f.keyframe_min_tracked_ratio = f.stereo_only_keyframe_min_tracked_ratio;
+    f.keyframe_min_parallax_px = f.stereo_only_keyframe_min_parallax_px;
+  }
+  return f;
+}
+
 double Yaw(const Eigen::Quaterniond& q) {
   const Eigen::Matrix3d r = q.toRotationMatrix();
   return std::atan2(r(1, 0), r(0, 0));
@@ -167,7 +181,7 @@ VioEstimator::VioEstimator(const camera::StereoRig& rig, const Rigid3d& body_fro
       body_from_cam0_(body_from_cam0),
       imu_noise_(imu_noise),
       options_(options),
-      frontend_(rig, options.frontend),
+      frontend_(rig, FrontendForMode(options.frontend, options.mode)),
       backend_(WithMode(options.backend, options, imu_noise), MakeExtrinsics(rig, body_from_cam0)) {
   const std::string problem = options_.Check();
   OPTINAV_CHECK_MSG(problem.empty(), problem);
