@@ -65,10 +65,8 @@ std::string BackendOptions::Check() const {
   if (!(outlier_pixels > 0)) return "outlier_pixels must be > 0";
   if (!(min_depth_m > 0) || !(max_depth_m > min_depth_m))
     return "need 0 < min_depth_m < max_depth_m";
-  if (max_iterations < 1) return "max_iterations must be >= 1";
   if (!(stereo_only_outlier_pixels >= 0)) return "stereo_only_outlier_pixels must be >= 0";
-  if (stereo_fixed_keyframes < 0) return "stereo_fixed_keyframes must be >= 0";
-  if (!(stereo_min_disparity_px >= 0)) return "stereo_min_disparity_px must be >= 0";
+  if (max_iterations < 1) return "max_iterations must be >= 1";
   if (!(max_solver_time_s > 0)) return "max_solver_time_s must be > 0";
   for (double s : {prior_position_sigma_m, prior_yaw_sigma_rad, prior_tilt_sigma_rad,
                    prior_velocity_sigma_m_s, prior_gyro_bias_sigma, prior_accel_bias_sigma})
@@ -93,7 +91,6 @@ SlidingWindowBackend::~SlidingWindowBackend() = default;
 
 void SlidingWindowBackend::Reset() {
   states_.clear();
-  fixed_states_.clear();
   landmarks_.clear();
   timed_factors_.clear();
   alignment_enabled_ = false;
@@ -169,12 +166,6 @@ void SlidingWindowBackend::TriangulateNew(State* state) {
   const Rigid3d body_from_world = state->WorldFromBody().Inverse();
   const Rigid3d cam0_from_world = rig_.cam0_from_body * body_from_world;
   const Rigid3d cam1_from_world = rig_.cam1_from_body * body_from_world;
-  double max_depth = options_.max_depth_m;
-  if (!options_.use_imu && options_.stereo_min_disparity_px > 0) {
-    const double baseline =
-        (rig_.cam1_from_body * rig_.cam0_from_body.Inverse()).translation.norm();
-    max_depth = std::min(max_depth, rig_.focal_px * baseline / options_.stereo_min_disparity_px);
-  }
   for (const auto& [id, obs] : state->observations) {
     Landmark& landmark = *landmarks_.at(id);
     if (landmark.initialized || !obs.right) continue;
@@ -182,7 +173,7 @@ void SlidingWindowBackend::TriangulateNew(State* state) {
         camera::TriangulateTwoView(cam0_from_world, cam1_from_world, obs.left, *obs.right);
     if (!point) continue;
     const double depth = (cam0_from_world * *point).z();
-    if (depth < options_.min_depth_m || depth > max_depth) continue;
+    if (depth < options_.min_depth_m || depth > options_.max_depth_m) continue;
     for (int i = 0; i < 3; ++i) landmark.position[i] = (*point)[i];
     landmark.initialized = true;
   }
@@ -486,29 +477,6 @@ void SlidingWindowBackend::Optimize() {
                              spec->blocks);
     ++num_observations;
   }
-  // Stereo-only local map: observations by the fixed (marginalised) keyframes of landmarks in
-  // this problem, their poses held constant.
-  for (const auto& fixed : fixed_states_) {
-    bool added = false;
-    for (const auto& [id, obs] : fixed->observations) {
-      const auto it = landmarks_.find(id);
-      if (it == landmarks_.end() || !problem.HasParameterBlock(it->second->position)) continue;
-      if (!added) {
-        problem.AddParameterBlock(fixed->pose, kPoseSize,
-                                  const_cast<ceres::Manifold*>(PoseManifold()));
-        problem.SetParameterBlockConstant(fixed->pose);
-        added = true;
-      }
-      auto add = [&](const Rigid3d& cam_from_body, const Eigen::Vector2d& observed) {
-        problem.AddResidualBlock(
-            CreateReprojectionFactor(cam_from_body, observed, rig_.focal_px, options_.pixel_sigma),
-            huber_.get(), fixed->pose, it->second->position);
-        ++num_observations;
-      };
-      add(rig_.cam0_from_body, obs.left);
-      if (obs.right) add(rig_.cam1_from_body, *obs.right);
-    }
-  }
   if (alignment_enabled_) problem.AddParameterBlock(alignment_, kAlignmentSize);
   if (!prior_.empty()) {
     std::vector<double*> blocks;
@@ -568,24 +536,6 @@ void SlidingWindowBackend::RemoveOutliers() {
           (obs.right && error_px(rig_.cam1_from_body, *obs.right) > limit))
         bad.insert(id);
     }
-  }
-  // Fixed keyframes: only the observation goes (their poses cannot follow the window).
-  for (auto& fixed : fixed_states_) {
-    const Rigid3d body_from_world = fixed->WorldFromBody().Inverse();
-    std::erase_if(fixed->observations, [&](const auto& entry) {
-      const auto it = landmarks_.find(entry.first);
-      if (it == landmarks_.end() || !it->second->initialized || bad.count(entry.first)) return true;
-      const double* x = it->second->position;
-      const Eigen::Vector3d p_body = body_from_world * Eigen::Vector3d(x[0], x[1], x[2]);
-      auto error_px = [&](const Rigid3d& cam_from_body, const Eigen::Vector2d& observed) {
-        const Eigen::Vector3d p = cam_from_body * p_body;
-        if (p.z() < options_.min_depth_m) return 1e9;
-        return rig_.focal_px * (p.head<2>() / p.z() - observed).norm();
-      };
-      const StereoObservation& obs = entry.second;
-      return error_px(rig_.cam0_from_body, obs.left) > limit ||
-             (obs.right && error_px(rig_.cam1_from_body, *obs.right) > limit);
-    });
   }
   for (uint64_t id : bad) {
     for (auto& state : states_) state->observations.erase(id);
@@ -673,7 +623,6 @@ void SlidingWindowBackend::MarginalizeOldest() {
   // Remove what left the window.
   for (uint64_t id : leaving_ids) {
     for (auto& state : states_) state->observations.erase(id);
-    for (auto& state : fixed_states_) state->observations.erase(id);
     landmarks_.erase(id);
   }
   for (const auto& [id, obs] : oldest->observations) {
@@ -681,14 +630,6 @@ void SlidingWindowBackend::MarginalizeOldest() {
     if (it != landmarks_.end() && --it->second->num_states <= 0) landmarks_.erase(it);
   }
   std::erase_if(timed_factors_, [&](const auto& f) { return f->t_ns() < next_t; });
-  if (!options_.use_imu && options_.stereo_fixed_keyframes > 0) {
-    // Keep the oldest as a fixed keyframe with its observations of the landmarks still here.
-    std::erase_if(oldest->observations,
-                  [&](const auto& entry) { return !landmarks_.count(entry.first); });
-    fixed_states_.push_back(std::move(states_.front()));
-    while (static_cast<int>(fixed_states_.size()) > options_.stereo_fixed_keyframes)
-      fixed_states_.pop_front();
-  }
   states_.pop_front();
   states_.front()->has_preintegration = false;
 }

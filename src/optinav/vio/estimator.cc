@@ -80,8 +80,6 @@ VioOptions LoadVioOptions(const std::string& path) {
         {"stereo_only_outlier_pixels", &b.stereo_only_outlier_pixels},
         {"min_depth_m", &b.min_depth_m},
         {"max_depth_m", &b.max_depth_m},
-        {"stereo_fixed_keyframes", &b.stereo_fixed_keyframes},
-        {"stereo_min_disparity_px", &b.stereo_min_disparity_px},
         {"max_iterations", &b.max_iterations},
         {"max_solver_time_s", &b.max_solver_time_s},
         {"relinearize_gyro_bias", &b.relinearize_gyro_bias},
