@@ -45,10 +45,9 @@ struct BackendOptions {
   double min_depth_m = 0.1;     // landmarks closer than this to a camera are rejected
   double max_depth_m = 200.0;   // stereo triangulation beyond this is not trusted
   // Stereo-only (use_imu false): observations reprojecting worse than this after a solve are
-  // removed instead of outlier_pixels (0: outlier_pixels). At low resolution KLT tracks drift by
-  // a few pixels without failing the forward-backward check, and without IMU nothing else
-  // holds the poses against them (simulated car route: 4 px -> 2 px, see docs/VIO.md).
-  double stereo_only_outlier_pixels = 2.0;
+  // removed instead of outlier_pixels (0: outlier_pixels). The VIO pipeline sets it
+  // (VioOptions::stereo_only_outlier_pixels): it relies on the frontend replacing rejected tracks.
+  double stereo_only_outlier_pixels = 0.0;
   int max_iterations = 8;       // Levenberg-Marquardt iterations per frame
   double max_solver_time_s = 0.2;
   // Relinearise preintegration when the bias estimate moved more than this from the
