@@ -67,6 +67,7 @@ std::string BackendOptions::Check() const {
   if (!(outlier_pixels > 0)) return "outlier_pixels must be > 0";
   if (!(min_depth_m > 0) || !(max_depth_m > min_depth_m))
     return "need 0 < min_depth_m < max_depth_m";
+  if (!(stereo_only_outlier_pixels >= 0)) return "stereo_only_outlier_pixels must be >= 0";
   if (max_iterations < 1) return "max_iterations must be >= 1";
   if (!(max_solver_time_s > 0)) return "max_solver_time_s must be > 0";
   if (!(initial_trust_region_radius > 0))
@@ -558,7 +559,9 @@ void SlidingWindowBackend::Optimize() {
 void SlidingWindowBackend::RemoveOutliers() {
   stats_.num_outliers_removed = 0;
   std::set<uint64_t> bad;
-  const double limit = options_.outlier_pixels;
+  const double limit = !options_.use_imu && options_.stereo_only_outlier_pixels > 0
+                           ? options_.stereo_only_outlier_pixels
+                           : options_.outlier_pixels;
   for (const auto& state : states_) {
     const Rigid3d body_from_world = state->WorldFromBody().Inverse();
     for (const auto& [id, obs] : state->observations) {

@@ -44,6 +44,10 @@ struct BackendOptions {
   double outlier_pixels = 4.0;  // observations above this after a solve are removed
   double min_depth_m = 0.1;     // landmarks closer than this to a camera are rejected
   double max_depth_m = 200.0;   // stereo triangulation beyond this is not trusted
+  // Stereo-only (use_imu false): observations reprojecting worse than this after a solve are
+  // removed instead of outlier_pixels (0: outlier_pixels). The VIO pipeline sets it
+  // (VioOptions::stereo_only_outlier_pixels): it relies on the frontend replacing rejected tracks.
+  double stereo_only_outlier_pixels = 0.0;
   int max_iterations = 8;       // Levenberg-Marquardt iterations per frame
   // Levenberg-Marquardt's first damping is 1 / this radius (Ceres' default 1e4 damps the weakly
   // constrained directions, far landmark depths and the velocity/attitude they couple to, so

@@ -27,6 +27,7 @@ std::string VioModeName(VioMode mode) {
 std::string VioOptions::Check() const {
   if (std::string e = frontend.Check(); !e.empty()) return "frontend." + e;
   if (std::string e = backend.Check(); !e.empty()) return "backend." + e;
+  if (!(stereo_only_outlier_pixels >= 0)) return "backend.stereo_only_outlier_pixels must be >= 0";
   if (!(init_window_s > 0)) return "init_window_s must be > 0";
   if (!(still_max_gyro_std > 0) || !(still_max_accel_std > 0))
     return "still_max_gyro_std and still_max_accel_std must be > 0";
@@ -74,12 +75,15 @@ VioOptions LoadVioOptions(const std::string& path) {
         {"border_px", &f.border_px},
         {"keyframe_max_interval_s", &f.keyframe_max_interval_s},
         {"keyframe_min_tracked_ratio", &f.keyframe_min_tracked_ratio},
-        {"keyframe_min_parallax_px", &f.keyframe_min_parallax_px}}},
+        {"keyframe_min_parallax_px", &f.keyframe_min_parallax_px},
+        {"stereo_only_keyframe_min_tracked_ratio", &f.stereo_only_keyframe_min_tracked_ratio},
+        {"stereo_only_keyframe_min_parallax_px", &f.stereo_only_keyframe_min_parallax_px}}},
       {"backend",
        {{"window_keyframes", &b.window_keyframes},
         {"pixel_sigma", &b.pixel_sigma},
         {"huber_pixels", &b.huber_pixels},
         {"outlier_pixels", &b.outlier_pixels},
+        {"stereo_only_outlier_pixels", &o.stereo_only_outlier_pixels},
         {"min_depth_m", &b.min_depth_m},
         {"max_depth_m", &b.max_depth_m},
         {"max_iterations", &b.max_iterations},
@@ -160,8 +164,18 @@ RigExtrinsics MakeExtrinsics(const camera::StereoRig& rig, const Rigid3d& body_f
 
 BackendOptions WithMode(BackendOptions b, const VioOptions& o, const ImuNoise& noise) {
   b.use_imu = o.mode == VioMode::kStereoImu;
+  b.stereo_only_outlier_pixels = o.stereo_only_outlier_pixels;
   b.imu_noise = noise;
   return b;
+}
+
+// Stereo-only mode: the frontend's stereo-only keyframe thresholds.
+FrontendOptions FrontendForMode(FrontendOptions f, VioMode mode) {
+  if (mode == VioMode::kStereo) {
+    f.keyframe_min_tracked_ratio = f.stereo_only_keyframe_min_tracked_ratio;
+    f.keyframe_min_parallax_px = f.stereo_only_keyframe_min_parallax_px;
+  }
+  return f;
 }
 
 double Yaw(const Eigen::Quaterniond& q) {
@@ -177,7 +191,7 @@ VioEstimator::VioEstimator(const camera::StereoRig& rig, const Rigid3d& body_fro
       body_from_cam0_(body_from_cam0),
       imu_noise_(imu_noise),
       options_(options),
-      frontend_(rig, options.frontend),
+      frontend_(rig, FrontendForMode(options.frontend, options.mode)),
       backend_(WithMode(options.backend, options, imu_noise), MakeExtrinsics(rig, body_from_cam0)) {
   const std::string problem = options_.Check();
   OPTINAV_CHECK_MSG(problem.empty(), problem);

@@ -64,6 +64,12 @@ struct VioOptions {
   VioMode mode = VioMode::kStereoImu;
   FrontendOptions frontend;
   BackendOptions backend;
+  // Stereo-only mode: the backend's outlier threshold (pixels; YAML backend.
+  // stereo_only_outlier_pixels; 0: backend.outlier_pixels). At 400x300 KLT tracks drift by a few
+  // pixels without failing the forward-backward check, and without IMU nothing else holds the
+  // poses against them; the frontend replaces the rejected tracks (simulated car route: 4 px ->
+  // 2 px, docs/VIO.md).
+  double stereo_only_outlier_pixels = 2.0;
   // Initialisation.
   double init_window_s = 0.5;  // IMU window checked for stillness, s
   // Stillness: standard deviation of the 0.1 s block means over the window.

@@ -38,6 +38,10 @@ std::string FrontendOptions::Check() const {
   if (!(keyframe_min_tracked_ratio >= 0 && keyframe_min_tracked_ratio <= 1))
     return "keyframe_min_tracked_ratio must be in [0, 1]";
   if (!(keyframe_min_parallax_px > 0)) return "keyframe_min_parallax_px must be > 0";
+  if (!(stereo_only_keyframe_min_tracked_ratio >= 0 && stereo_only_keyframe_min_tracked_ratio <= 1))
+    return "stereo_only_keyframe_min_tracked_ratio must be in [0, 1]";
+  if (!(stereo_only_keyframe_min_parallax_px > 0))
+    return "stereo_only_keyframe_min_parallax_px must be > 0";
   return "";
 }
 

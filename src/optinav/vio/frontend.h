@@ -48,6 +48,12 @@ struct FrontendOptions {
   double keyframe_max_interval_s = 0.5;
   double keyframe_min_tracked_ratio = 0.75;
   double keyframe_min_parallax_px = 15.0;
+  // Stereo-only mode (VioMode::kStereo) uses these instead of the two above: without a gyro the
+  // parallax includes the rotation, and on a car near ground features race through the image,
+  // so the defaults above make nearly every frame a keyframe (the simulated car route: 3300 of
+  // 3509 frames) and the window spans under 2 m.
+  double stereo_only_keyframe_min_tracked_ratio = 0.5;
+  double stereo_only_keyframe_min_parallax_px = 40.0;
 
   std::string Check() const;
 };
