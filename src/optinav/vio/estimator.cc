@@ -28,6 +28,8 @@ std::string VioOptions::Check() const {
   if (std::string e = frontend.Check(); !e.empty()) return "frontend." + e;
   if (std::string e = backend.Check(); !e.empty()) return "backend." + e;
   if (!(stereo_only_outlier_pixels >= 0)) return "backend.stereo_only_outlier_pixels must be >= 0";
+  if (!(stereo_only_initial_trust_region_radius > 0) || !(stereo_only_function_tolerance > 0))
+    return "backend.stereo_only_initial_trust_region_radius and function_tolerance must be > 0";
   if (!(init_window_s > 0)) return "init_window_s must be > 0";
   if (!(still_max_gyro_std > 0) || !(still_max_accel_std > 0))
     return "still_max_gyro_std and still_max_accel_std must be > 0";
@@ -84,6 +86,8 @@ VioOptions LoadVioOptions(const std::string& path) {
         {"huber_pixels", &b.huber_pixels},
         {"outlier_pixels", &b.outlier_pixels},
         {"stereo_only_outlier_pixels", &o.stereo_only_outlier_pixels},
+        {"stereo_only_initial_trust_region_radius", &o.stereo_only_initial_trust_region_radius},
+        {"stereo_only_function_tolerance", &o.stereo_only_function_tolerance},
         {"min_depth_m", &b.min_depth_m},
         {"max_depth_m", &b.max_depth_m},
         {"max_iterations", &b.max_iterations},
@@ -165,6 +169,10 @@ RigExtrinsics MakeExtrinsics(const camera::StereoRig& rig, const Rigid3d& body_f
 BackendOptions WithMode(BackendOptions b, const VioOptions& o, const ImuNoise& noise) {
   b.use_imu = o.mode == VioMode::kStereoImu;
   b.stereo_only_outlier_pixels = o.stereo_only_outlier_pixels;
+  if (!b.use_imu) {
+    b.initial_trust_region_radius = o.stereo_only_initial_trust_region_radius;
+    b.function_tolerance = o.stereo_only_function_tolerance;
+  }
   b.imu_noise = noise;
   return b;
 }
