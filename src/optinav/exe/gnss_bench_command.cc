@@ -134,15 +134,23 @@ Sequence PrepareSequence(const std::string& name, const std::string& root, doubl
   return seq;
 }
 
-// GNSS of a condition from the ground truth (the simulator's world frame is ENU), 5 Hz.
+// GNSS of a condition from the ground truth (the simulator's world frame is ENU), 5 Hz. The
+// Gaussian noise of a sample depends only on its time and the seed (common random numbers: the
+// outlier and outage conditions are the sigma 3 m draw with samples replaced or removed, so
+// their rows differ from it by the outliers or the outage alone, not by another noise draw).
 std::vector<vio::GnssSample> MakeGnss(const Sequence& seq, const Condition& c, int seed) {
-  std::mt19937 rng(1000 + seed);
+  std::mt19937 rng(1000 + seed), outlier_rng(5000 + seed);
   std::normal_distribution<double> normal;
   std::uniform_real_distribution<double> u(0.0, 1.0);
   std::vector<vio::GnssSample> out;
   const int64_t t0 = seq.truth.t_ns.front(), t1 = seq.truth.t_ns.back();
   for (int64_t t = t0 + 100'000'000; t <= t1; t += 200'000'000) {
     const double ts = (t - t0) * 1e-9;
+    const Eigen::Vector3d noise(normal(rng), normal(rng), normal(rng));
+    const bool outlier = c.outlier_fraction > 0 && u(outlier_rng) < c.outlier_fraction;
+    const Eigen::Vector3d outlier_dir(normal(outlier_rng), normal(outlier_rng),
+                                      normal(outlier_rng));
+    const double outlier_m = 20.0 + 30.0 * u(outlier_rng);
     if (c.outage_s > 0 && ts >= seq.outage_start_s && ts < seq.outage_start_s + c.outage_s)
       continue;
     const auto pose = seq.truth.InterpolateAt(t);
@@ -150,12 +158,8 @@ std::vector<vio::GnssSample> MakeGnss(const Sequence& seq, const Condition& c, i
     vio::GnssSample s;
     s.t_ns = t;
     s.sigma_m = c.factor_sigma_m;
-    s.position_enu_m = pose->translation + pose->rotation * seq.lever +
-                       c.sigma_m * Eigen::Vector3d(normal(rng), normal(rng), normal(rng));
-    if (c.outlier_fraction > 0 && u(rng) < c.outlier_fraction) {
-      const Eigen::Vector3d dir(normal(rng), normal(rng), normal(rng));
-      s.position_enu_m += dir.normalized() * (20.0 + 30.0 * u(rng));
-    }
+    s.position_enu_m = pose->translation + pose->rotation * seq.lever + c.sigma_m * noise;
+    if (outlier) s.position_enu_m += outlier_dir.normalized() * outlier_m;
     out.push_back(s);
   }
   return out;
