@@ -45,6 +45,15 @@ nlohmann::json StatsJson(const vio::VioRunResult& r, const std::string& mode) {
                     {"duration_s", (l.end_ns - l.start_ns) * 1e-9},
                     {"reason", l.reason}});
   j["lost_intervals"] = lost;
+  j["loop_closure"] = r.loop_closure_ran;
+  nlohmann::json loops = nlohmann::json::array();
+  for (const vio::LoopEdge& l : r.loops)
+    loops.push_back({{"old_keyframe_s", l.t_old_ns * 1e-9},
+                     {"new_keyframe_s", l.t_new_ns * 1e-9},
+                     {"inliers", l.inliers},
+                     {"relative_translation_m", l.old_body_from_new_body.translation.norm()},
+                     {"correction_m", l.correction_m}});
+  j["loops"] = loops;
   if (!r.gnss_stats.received) return j;
   const vio::GnssFusionStats& g = r.gnss_stats;
   j["gnss"] = {{"received", g.received},
@@ -99,7 +108,7 @@ int RunVio(int argc, char** argv) {
       "recording (stereo-only)",
       "optinav vio"};
   std::string dataset, format = "euroc", config, out, camera_out, stats, mode_name,
-                       log_level = "info";
+                       log_level = "info", loop_closure, odometry_out;
   bool sequential = false;
   size_t max_frames = 0;
   bool gnss = false;
@@ -117,6 +126,11 @@ int RunVio(int argc, char** argv) {
   app.add_option("--stats", stats,
                  "timing per module (median, p95 per frame) and lost intervals, JSON");
   app.add_option("--mode", mode_name, "stereo-imu|stereo (default: the config's, else stereo-imu)");
+  app.add_option("--loop-closure", loop_closure,
+                 "on|off: close loops with earlier keyframes and correct the output (default: "
+                 "the config's: on in stereo mode, off in stereo-imu mode; never with --gnss)");
+  app.add_option("--odometry-out", odometry_out,
+                 "also write the body trajectory before the loop corrections, TUM");
   app.add_flag("--sequential", sequential,
                "run in one thread, deterministic (default: loader, frontend and backend threads; "
                "close to, not identical with, the sequential results)");
@@ -189,6 +203,10 @@ int RunVio(int argc, char** argv) {
       return 2;
     }
   }
+  if (!loop_closure.empty() && loop_closure != "on" && loop_closure != "off") {
+    spdlog::error("--loop-closure: expected on or off, got '{}'", loop_closure);
+    return 2;
+  }
   std::optional<vio::GnssNorm> norm = vio::ParseGnssNorm(gnss_norm);
   std::optional<vio::GnssTimeMode> time_mode = vio::ParseGnssTimeMode(gnss_time);
   if (!norm) {
@@ -208,6 +226,13 @@ int RunVio(int argc, char** argv) {
     if (!config.empty()) options.vio = vio::LoadVioOptions(config);
     if (mode) options.vio.mode = *mode;
     if (format == "airsim" && !mode) options.vio.mode = vio::VioMode::kStereo;  // no IMU in AirSim
+    if (!loop_closure.empty()) {
+      (options.vio.mode == vio::VioMode::kStereo ? options.vio.loop_closure.stereo_only
+                                                 : options.vio.loop_closure.stereo_imu) =
+          loop_closure == "on";
+      if (loop_closure == "on" && gnss)
+        throw Error("loop closure does not run with GNSS fusion", {.field = "--loop-closure"});
+    }
     options.threaded = !sequential;
     options.max_frames = max_frames;
     std::optional<vio::GnssInput> gnss_input;
@@ -286,6 +311,13 @@ int RunVio(int argc, char** argv) {
       }
     }
     io::WriteTrajectory(out, body, io::TrajectoryFormat::kTum);
+    if (!odometry_out.empty())
+      io::WriteTrajectory(odometry_out,
+                          vio::EstimatesToTrajectory(r.odometry.empty() ? r.estimates : r.odometry),
+                          io::TrajectoryFormat::kTum);
+    if (!r.loops.empty())
+      std::printf("loop closure: %zu loop(s) closed, the output is corrected%s\n", r.loops.size(),
+                  odometry_out.empty() ? " (--odometry-out writes it before)" : "");
     if (!camera_out.empty()) {
       const Trajectory c = frame == "enu"
                                ? vio::EstimatesToEnuTrajectory(r.estimates, r.body_from_cam0)

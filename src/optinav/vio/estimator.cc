@@ -27,6 +27,7 @@ std::string VioModeName(VioMode mode) {
 std::string VioOptions::Check() const {
   if (std::string e = frontend.Check(); !e.empty()) return "frontend." + e;
   if (std::string e = backend.Check(); !e.empty()) return "backend." + e;
+  if (std::string e = loop_closure.Check(); !e.empty()) return e;
   if (!(stereo_only_outlier_pixels >= 0)) return "backend.stereo_only_outlier_pixels must be >= 0";
   if (!(stereo_only_initial_trust_region_radius > 0) || !(stereo_only_function_tolerance > 0))
     return "backend.stereo_only_initial_trust_region_radius and function_tolerance must be > 0";
@@ -56,10 +57,11 @@ VioOptions LoadVioOptions(const std::string& path) {
   if (!root.IsMap()) throw Error("expected a map of options", {.file = path});
   // Every key of a section and the field it sets; any other key is an error (a typo must not
   // pass silently).
-  using Field = std::variant<int*, double*>;
+  using Field = std::variant<int*, double*, bool*>;
   using Section = std::vector<std::pair<const char*, Field>>;
   FrontendOptions& f = o.frontend;
   BackendOptions& b = o.backend;
+  LoopClosureOptions& l = o.loop_closure;
   const std::map<std::string, Section> sections = {
       {"frontend",
        {{"max_features", &f.max_features},
@@ -102,6 +104,28 @@ VioOptions LoadVioOptions(const std::string& path) {
         {"prior_velocity_sigma_m_s", &b.prior_velocity_sigma_m_s},
         {"prior_gyro_bias_sigma", &b.prior_gyro_bias_sigma},
         {"prior_accel_bias_sigma", &b.prior_accel_bias_sigma}}},
+      {"loop_closure",
+       {{"stereo_only", &l.stereo_only},
+        {"stereo_imu", &l.stereo_imu},
+        {"orb_features", &l.orb_features},
+        {"stereo_epipolar_px", &l.stereo_epipolar_px},
+        {"max_depth_baselines", &l.max_depth_baselines},
+        {"min_separation_s", &l.min_separation_s},
+        {"min_separation_m", &l.min_separation_m},
+        {"search_radius_m", &l.search_radius_m},
+        {"search_radius_fraction", &l.search_radius_fraction},
+        {"max_view_angle_deg", &l.max_view_angle_deg},
+        {"max_candidates", &l.max_candidates},
+        {"match_ratio", &l.match_ratio},
+        {"pnp_px", &l.pnp_px},
+        {"min_inliers", &l.min_inliers},
+        {"min_interval_s", &l.min_interval_s},
+        {"odometry_sigma_m_per_m", &l.odometry_sigma_m_per_m},
+        {"odometry_min_sigma_m", &l.odometry_min_sigma_m},
+        {"odometry_sigma_rad_per_m", &l.odometry_sigma_rad_per_m},
+        {"odometry_min_sigma_rad", &l.odometry_min_sigma_rad},
+        {"loop_sigma_m", &l.loop_sigma_m},
+        {"loop_sigma_rad", &l.loop_sigma_rad}}},
       {"initialization",
        {{"init_window_s", &o.init_window_s},
         {"still_max_gyro_std", &o.still_max_gyro_std},

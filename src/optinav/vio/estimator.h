@@ -53,6 +53,7 @@
 #include "optinav/vio/backend.h"
 #include "optinav/vio/frontend.h"
 #include "optinav/vio/gnss_fusion.h"
+#include "optinav/vio/loop_closure.h"
 
 namespace optinav::vio {
 
@@ -64,6 +65,7 @@ struct VioOptions {
   VioMode mode = VioMode::kStereoImu;
   FrontendOptions frontend;
   BackendOptions backend;
+  LoopClosureOptions loop_closure;  // run by the pipeline (vio/pipeline.h)
   // Stereo-only mode: the backend's outlier threshold (pixels; YAML backend.
   // stereo_only_outlier_pixels; 0: backend.outlier_pixels). At 400x300 KLT tracks drift by a few
   // pixels without failing the forward-backward check, and without IMU nothing else holds the

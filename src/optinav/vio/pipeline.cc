@@ -84,6 +84,7 @@ struct StereoPair {
 struct TrackedPacket {
   std::vector<GnssSample> gnss;
   std::optional<FramePacket> frame;
+  cv::Mat left, right;  // for loop closure
 };
 
 // The run loop shared by the dataset formats.
@@ -121,11 +122,32 @@ VioRunResult RunOnPairs(const camera::StereoRig& rig, const Rigid3d& body_from_c
 
   VioEstimator estimator(rig, body_from_cam0, noise, options.vio);
   if (options.gnss) estimator.EnableGnss(*options.gnss);
-  auto record = [&](std::optional<FrameEstimate> e) {
+  const LoopClosureOptions& lc = options.vio.loop_closure;
+  std::optional<LoopCloser> closer;
+  if (options.vio.mode == VioMode::kStereo ? lc.stereo_only : lc.stereo_imu) {
+    if (options.gnss)
+      spdlog::warn("vio: loop closure is not run with GNSS fusion");
+    else
+      closer.emplace(rig, body_from_cam0, lc);
+  }
+  TimingStats loop_timing;
+  if (closer) closer->set_timing(&loop_timing);
+  int track_initializations = 0;
+  auto record = [&](std::optional<FrameEstimate> e, const cv::Mat& left, const cv::Mat& right) {
     // Earlier frames first (an in-motion alignment window, output when it succeeds).
-    for (FrameEstimate& d : estimator.TakeDelayedEstimates()) result.estimates.push_back(d);
+    std::vector<FrameEstimate> delayed = estimator.TakeDelayedEstimates();
+    const FrameEstimate* first = !delayed.empty() ? &delayed.front() : e ? &*e : nullptr;
+    if (closer && first && estimator.initializations() != track_initializations) {
+      if (track_initializations > 0) closer->NewTrack(first->state.t_ns);
+      track_initializations = estimator.initializations();
+    }
+    for (FrameEstimate& d : delayed) result.estimates.push_back(d);
     if (!e) return;
     if (result.first_init_kind.empty()) result.first_init_kind = estimator.last_init_kind();
+    if (closer && e->keyframe && !left.empty()) {
+      ScopedTimer timer(loop_timing, "loop_closure");
+      closer->AddKeyframe(e->state, left, right);
+    }
     result.estimates.push_back(std::move(*e));
   };
 
@@ -135,7 +157,8 @@ VioRunResult RunOnPairs(const camera::StereoRig& rig, const Rigid3d& body_from_c
       for (const GnssSample& s : packet.gnss) estimator.AddGnss(s);
       if (packet.left.empty()) return true;
       ++result.frames_processed;
-      record(estimator.ProcessFrame(packet.t_ns, packet.left, packet.right));
+      record(estimator.ProcessFrame(packet.t_ns, packet.left, packet.right), packet.left,
+             packet.right);
       return true;
     });
   } else {
@@ -150,12 +173,13 @@ VioRunResult RunOnPairs(const camera::StereoRig& rig, const Rigid3d& body_from_c
           if (!p.left.empty()) {
             ++result.frames_processed;
             out.frame = estimator.RunFrontend(p.t_ns, p.left, p.right);
+            if (closer) out.left = p.left, out.right = p.right;
           }
           return out;
         },
         [&](TrackedPacket p) {
           for (const GnssSample& s : p.gnss) estimator.AddGnss(s);
-          if (p.frame) record(estimator.RunBackend(std::move(*p.frame)));
+          if (p.frame) record(estimator.RunBackend(std::move(*p.frame)), p.left, p.right);
         });
   }
   estimator.Finish();
@@ -167,6 +191,20 @@ VioRunResult RunOnPairs(const camera::StereoRig& rig, const Rigid3d& body_from_c
   }
   for (const std::string& stage : estimator.timing().Stages())
     result.timing[stage] = estimator.timing().Summary(stage);
+  if (closer) {
+    result.loop_closure_ran = true;
+    result.loops = closer->loops();
+    for (const std::string& stage : loop_timing.Stages())
+      result.timing[stage] = loop_timing.Summary(stage);
+    if (!result.loops.empty()) {
+      result.odometry = result.estimates;
+      for (FrameEstimate& e : result.estimates) {
+        const Rigid3d c = closer->CorrectionAt(e.state.t_ns);
+        e.state.world_from_body = c * e.state.world_from_body;
+        e.state.velocity = c.rotation * e.state.velocity;
+      }
+    }
+  }
   return result;
 }
 

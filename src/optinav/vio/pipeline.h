@@ -52,6 +52,11 @@ struct VioRunResult {
   int initializations = 0;
   std::string first_init_kind;
   Rigid3d body_from_cam0;
+  // Loop closure (VioOptions::loop_closure): `estimates` are corrected by the closed loops;
+  // `odometry` holds the estimates before the correction (empty when loop closure did not run).
+  bool loop_closure_ran = false;
+  std::vector<LoopEdge> loops;
+  std::vector<FrameEstimate> odometry;
   // With GNSS.
   std::vector<RejectedGnss> gnss_rejected;
   GnssFusionStats gnss_stats;

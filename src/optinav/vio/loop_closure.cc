@@ -1,0 +1,332 @@
+#include "optinav/vio/loop_closure.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include <ceres/ceres.h>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core/eigen.hpp>
+#include <opencv2/features2d.hpp>
+#include <opencv2/video/tracking.hpp>
+#include <spdlog/spdlog.h>
+
+#include "optinav/features/features.h"
+#include "optinav/util/error.h"
+
+namespace optinav::vio {
+
+std::string LoopClosureOptions::Check() const {
+  if (orb_features < 50) return "loop_closure.orb_features must be >= 50";
+  if (!(stereo_epipolar_px > 0) || !(pnp_px > 0)) return "loop_closure pixel thresholds must be > 0";
+  if (!(max_depth_baselines > 1)) return "loop_closure.max_depth_baselines must be > 1";
+  if (!(min_separation_s >= 0) || !(min_separation_m >= 0))
+    return "loop_closure.min_separation_* must be >= 0";
+  if (!(search_radius_m > 0) || !(search_radius_fraction >= 0))
+    return "loop_closure.search_radius_m must be > 0, search_radius_fraction >= 0";
+  if (!(max_view_angle_deg > 0 && max_view_angle_deg <= 180))
+    return "loop_closure.max_view_angle_deg must be in (0, 180]";
+  if (max_candidates < 1) return "loop_closure.max_candidates must be >= 1";
+  if (!(match_ratio > 0 && match_ratio <= 1)) return "loop_closure.match_ratio must be in (0, 1]";
+  if (min_inliers < 6) return "loop_closure.min_inliers must be >= 6";
+  if (!(min_interval_s >= 0)) return "loop_closure.min_interval_s must be >= 0";
+  if (!(odometry_sigma_m_per_m >= 0) || !(odometry_min_sigma_m > 0) ||
+      !(odometry_sigma_rad_per_m >= 0) || !(odometry_min_sigma_rad > 0) || !(loop_sigma_m > 0) ||
+      !(loop_sigma_rad > 0))
+    return "loop_closure sigmas must be > 0 (per-metre growth >= 0)";
+  return "";
+}
+
+namespace {
+
+// Relative pose i -> j of the pose graph: residual in the frame of i, translation then rotation
+// (twice the vector part of the quaternion error), each over its sigma.
+struct RelativePoseResidual {
+  RelativePoseResidual(const Rigid3d& i_from_j, double sigma_m, double sigma_rad)
+      : q(i_from_j.rotation), t(i_from_j.translation), w_t(1 / sigma_m), w_r(1 / sigma_rad) {}
+
+  template <typename T>
+  bool operator()(const T* qi_p, const T* ti_p, const T* qj_p, const T* tj_p, T* r) const {
+    const Eigen::Map<const Eigen::Quaternion<T>> qi(qi_p), qj(qj_p);
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> ti(ti_p), tj(tj_p);
+    const Eigen::Quaternion<T> qi_inv = qi.conjugate();
+    const Eigen::Matrix<T, 3, 1> t_est = qi_inv * (tj - ti);
+    const Eigen::Quaternion<T> dq = q.template cast<T>().conjugate() * (qi_inv * qj);
+    for (int k = 0; k < 3; ++k) {
+      r[k] = (t_est[k] - T(t[k])) * T(w_t);
+      r[3 + k] = T(2.0) * dq.vec()[k] * T(w_r);
+    }
+    return true;
+  }
+
+  Eigen::Quaterniond q;
+  Eigen::Vector3d t;
+  double w_t, w_r;
+};
+
+double AngleBetween(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::atan2(a.cross(b).norm(), a.dot(b));
+}
+
+}  // namespace
+
+LoopCloser::LoopCloser(const camera::StereoRig& rig, const Rigid3d& body_from_cam0,
+                       const LoopClosureOptions& options)
+    : rig_(rig), body_from_cam0_(body_from_cam0), options_(options) {
+  if (const std::string e = options.Check(); !e.empty()) throw Error(e, {.field = "loop_closure"});
+}
+
+LoopCloser::Keyframe LoopCloser::Describe(const StateEstimate& state, const cv::Mat& left,
+                                          const cv::Mat& right) const {
+  Keyframe kf;
+  kf.t_ns = state.t_ns;
+  kf.track = track_;
+  kf.odometry = state.world_from_body;
+  cv::Ptr<cv::ORB> orb = cv::ORB::create(options_.orb_features);
+  std::vector<cv::KeyPoint> kl;
+  cv::Mat dl;
+  Timer timer;
+  orb->detectAndCompute(left, cv::noArray(), kl, dl);
+  if (timing_) timing_->Add("loop_closure.orb", timer.ElapsedSeconds());
+  timer.Restart();
+  kf.descriptors = dl;
+  kf.normalized.reserve(kl.size());
+  for (const cv::KeyPoint& k : kl)
+    kf.normalized.push_back(rig_.left.PixelToNormalized({k.pt.x, k.pt.y}));
+  if (kl.empty()) return kf;
+  // Stereo: Lucas-Kanade from the left keypoint into the right image (from zero disparity),
+  // accepted on the epipolar line, in front of both cameras and not too far.
+  std::vector<cv::Point2f> pl, pr;
+  for (const cv::KeyPoint& k : kl) pl.push_back(k.pt);
+  pr = pl;
+  std::vector<uchar> ok;
+  std::vector<float> err;
+  const cv::TermCriteria crit(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.03);
+  cv::calcOpticalFlowPyrLK(left, right, pl, pr, ok, err, cv::Size(15, 15), 3, crit,
+                           cv::OPTFLOW_USE_INITIAL_FLOW);
+  // Essential matrix of right_from_left: x_r^T E x_l = 0.
+  const Eigen::Vector3d& t = rig_.right_from_left.translation;
+  Eigen::Matrix3d tx;
+  tx << 0, -t.z(), t.y(), t.z(), 0, -t.x(), -t.y(), t.x(), 0;
+  const Eigen::Matrix3d E = tx * rig_.right_from_left.rotation.toRotationMatrix();
+  const double max_line = options_.stereo_epipolar_px / rig_.right.fx;
+  const double max_depth = options_.max_depth_baselines * rig_.Baseline();
+  for (size_t i = 0; i < kl.size(); ++i) {
+    if (!ok[i]) continue;
+    const Eigen::Vector2d pix(pr[i].x, pr[i].y);
+    if (!rig_.right.InImage(pix)) continue;
+    const Eigen::Vector2d nr = rig_.right.PixelToNormalized(pix);
+    const Eigen::Vector3d line = E * kf.normalized[i].homogeneous();
+    const double scale = std::hypot(line.x(), line.y());
+    if (!(scale > 0) || std::abs(line.dot(nr.homogeneous())) / scale > max_line) continue;
+    const auto p = camera::TriangulateTwoView(Rigid3d::Identity(), rig_.right_from_left,
+                                              kf.normalized[i], nr);
+    if (!p || p->z() < 0.1 || p->z() > max_depth) continue;
+    kf.points.push_back(*p);
+    kf.point_descriptors.push_back(dl.row(static_cast<int>(i)));
+  }
+  if (timing_) timing_->Add("loop_closure.stereo", timer.ElapsedSeconds());
+  return kf;
+}
+
+bool LoopCloser::Match(const Keyframe& candidate, const Keyframe& current, const Rigid3d& predicted,
+                       double radius_m, Rigid3d* cand_body_from_cur_body, int* inliers) const {
+  const std::vector<cv::DMatch> matches = features::MatchWithRatio(
+      candidate.point_descriptors, current.descriptors, cv::NORM_HAMMING,
+      static_cast<float>(options_.match_ratio));
+  spdlog::debug("vio: loop candidate {:.3f} s for {:.3f} s: {} points, {} matches",
+                candidate.t_ns * 1e-9, current.t_ns * 1e-9, candidate.points.size(),
+                matches.size());
+  if (static_cast<int>(matches.size()) < options_.min_inliers) return false;
+  std::vector<cv::Point3f> object;
+  std::vector<cv::Point2f> image;
+  for (const cv::DMatch& m : matches) {
+    const Eigen::Vector3d& p = candidate.points[m.queryIdx];
+    const Eigen::Vector2d& n = current.normalized[m.trainIdx];
+    object.emplace_back(p.x(), p.y(), p.z());
+    image.emplace_back(n.x(), n.y());
+  }
+  cv::Mat rvec, tvec;
+  std::vector<int> inlier_idx;
+  const cv::Mat K = cv::Mat::eye(3, 3, CV_64F);
+  const double threshold = options_.pnp_px / rig_.left.fx;
+  if (!cv::solvePnPRansac(object, image, K, cv::noArray(), rvec, tvec, false, 300, threshold,
+                          0.999, inlier_idx, cv::SOLVEPNP_AP3P))
+    return false;
+  spdlog::debug("vio: loop candidate {:.3f} s: {} PnP inliers", candidate.t_ns * 1e-9,
+                inlier_idx.size());
+  if (static_cast<int>(inlier_idx.size()) < options_.min_inliers) return false;
+  std::vector<cv::Point3f> obj_in;
+  std::vector<cv::Point2f> img_in;
+  for (int k : inlier_idx) obj_in.push_back(object[k]), img_in.push_back(image[k]);
+  cv::solvePnP(obj_in, img_in, K, cv::noArray(), rvec, tvec, true, cv::SOLVEPNP_ITERATIVE);
+  cv::Mat R;
+  cv::Rodrigues(rvec, R);
+  Eigen::Matrix<double, 3, 4> m;
+  Eigen::Matrix3d Re;
+  cv::cv2eigen(R, Re);
+  m.leftCols<3>() = Re;
+  m.col(3) << tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2);
+  const Rigid3d cur_cam_from_cand_cam = Rigid3d::FromMatrix(m);
+  // Count the inliers again after the refinement.
+  int n = 0;
+  for (size_t k = 0; k < obj_in.size(); ++k) {
+    const Eigen::Vector3d q =
+        cur_cam_from_cand_cam * Eigen::Vector3d(obj_in[k].x, obj_in[k].y, obj_in[k].z);
+    if (q.z() <= 0) continue;
+    if ((q.head<2>() / q.z() - Eigen::Vector2d(img_in[k].x, img_in[k].y)).norm() <= threshold) ++n;
+  }
+  if (n < options_.min_inliers) return false;
+  const Rigid3d measured = body_from_cam0_ * cur_cam_from_cand_cam.Inverse() * body_from_cam0_.Inverse();
+  // Consistent with the corrected odometry?
+  const Rigid3d diff = predicted.Inverse() * measured;
+  spdlog::debug("vio: loop candidate {:.3f} s: {} refined inliers, {:.2f} m / {:.2f} deg from the "
+                "odometry (radius {:.2f} m)",
+                candidate.t_ns * 1e-9, n, diff.translation.norm(),
+                Eigen::AngleAxisd(diff.rotation).angle() * 180 / M_PI, radius_m);
+  if (diff.translation.norm() > radius_m ||
+      Eigen::AngleAxisd(diff.rotation).angle() > options_.max_view_angle_deg * M_PI / 180)
+    return false;
+  *cand_body_from_cur_body = measured;
+  *inliers = n;
+  return true;
+}
+
+bool LoopCloser::AddKeyframe(const StateEstimate& state, const cv::Mat& left,
+                             const cv::Mat& right) {
+  Keyframe kf = Describe(state, left, right);
+  const bool first_of_track = keyframes_.size() == track_first_;
+  if (!first_of_track) {
+    const Keyframe& prev = keyframes_.back();
+    kf.path_m = prev.path_m + (kf.odometry.translation - prev.odometry.translation).norm();
+    kf.correction = prev.correction;
+  }
+  keyframes_.push_back(std::move(kf));
+  if (first_of_track) return false;
+  const size_t cur = keyframes_.size() - 1;
+  const Keyframe& current = keyframes_[cur];
+  if (!loops_.empty() && loop_indices_.back().second >= track_first_ &&
+      (current.t_ns - loops_.back().t_new_ns) * 1e-9 < options_.min_interval_s)
+    return false;
+
+  // Candidates: the track's old keyframes near the corrected position, similar view direction.
+  const Rigid3d cur_pose = current.correction * current.odometry;
+  const Eigen::Vector3d cur_axis = (cur_pose.rotation * body_from_cam0_.rotation) * Eigen::Vector3d::UnitZ();
+  std::vector<std::pair<double, size_t>> candidates;
+  for (size_t j = track_first_; j < cur; ++j) {
+    const Keyframe& c = keyframes_[j];
+    const double since_m = current.path_m - c.path_m;
+    if ((current.t_ns - c.t_ns) * 1e-9 < options_.min_separation_s ||
+        since_m < options_.min_separation_m)
+      break;  // later keyframes are closer in time and path
+    const Rigid3d pose = c.correction * c.odometry;
+    const double d = (pose.translation - cur_pose.translation).norm();
+    if (d > options_.search_radius_m + options_.search_radius_fraction * since_m) continue;
+    const Eigen::Vector3d axis = (pose.rotation * body_from_cam0_.rotation) * Eigen::Vector3d::UnitZ();
+    if (AngleBetween(axis, cur_axis) > options_.max_view_angle_deg * M_PI / 180) continue;
+    candidates.emplace_back(d, j);
+  }
+  std::sort(candidates.begin(), candidates.end());
+  if (candidates.size() > static_cast<size_t>(options_.max_candidates))
+    candidates.resize(options_.max_candidates);
+  for (const auto& [d, j] : candidates) {
+    const Keyframe& c = keyframes_[j];
+    const double radius =
+        options_.search_radius_m + options_.search_radius_fraction * (current.path_m - c.path_m);
+    const Rigid3d predicted = (c.correction * c.odometry).Inverse() * cur_pose;
+    Rigid3d measured;
+    int inliers = 0;
+    if (!Match(c, current, predicted, radius, &measured, &inliers)) continue;
+    LoopEdge edge;
+    edge.t_old_ns = c.t_ns;
+    edge.t_new_ns = current.t_ns;
+    edge.old_body_from_new_body = measured;
+    edge.inliers = inliers;
+    loops_.push_back(edge);
+    loop_indices_.emplace_back(j, cur);
+    Optimize();
+    const Keyframe& now = keyframes_[cur];
+    loops_.back().correction_m =
+        ((now.correction * now.odometry).translation - cur_pose.translation).norm();
+    spdlog::info("vio: loop closed at {:.3f} s with the keyframe of {:.3f} s ({} inliers, {:.2f} m "
+                 "correction)",
+                 current.t_ns * 1e-9, c.t_ns * 1e-9, inliers, loops_.back().correction_m);
+    return true;
+  }
+  return false;
+}
+
+void LoopCloser::Optimize() {
+  const size_t n = keyframes_.size() - track_first_;
+  std::vector<std::array<double, 4>> q(n);  // x y z w (Eigen's storage)
+  std::vector<std::array<double, 3>> t(n);
+  for (size_t k = 0; k < n; ++k) {
+    const Keyframe& kf = keyframes_[track_first_ + k];
+    const Rigid3d pose = kf.correction * kf.odometry;
+    const Eigen::Quaterniond r = pose.rotation.normalized();
+    q[k] = {r.x(), r.y(), r.z(), r.w()};
+    t[k] = {pose.translation.x(), pose.translation.y(), pose.translation.z()};
+  }
+  ceres::Problem::Options po;
+  po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(po);
+  ceres::EigenQuaternionManifold manifold;
+  auto add = [&](size_t i, size_t j, const Rigid3d& i_from_j, double sm, double sr,
+                 ceres::LossFunction* loss) {
+    problem.AddResidualBlock(
+        new ceres::AutoDiffCostFunction<RelativePoseResidual, 6, 4, 3, 4, 3>(
+            new RelativePoseResidual(i_from_j, sm, sr)),
+        loss, q[i].data(), t[i].data(), q[j].data(), t[j].data());
+  };
+  for (size_t k = 0; k + 1 < n; ++k) {
+    const Keyframe& a = keyframes_[track_first_ + k];
+    const Keyframe& b = keyframes_[track_first_ + k + 1];
+    const double dist = b.path_m - a.path_m;
+    add(k, k + 1, a.odometry.Inverse() * b.odometry,
+        std::max(options_.odometry_min_sigma_m, options_.odometry_sigma_m_per_m * dist),
+        std::max(options_.odometry_min_sigma_rad, options_.odometry_sigma_rad_per_m * dist),
+        nullptr);
+  }
+  for (size_t e = 0; e < loops_.size(); ++e) {
+    const auto [i, j] = loop_indices_[e];
+    if (i < track_first_) continue;
+    add(i - track_first_, j - track_first_, loops_[e].old_body_from_new_body, options_.loop_sigma_m,
+        options_.loop_sigma_rad, new ceres::CauchyLoss(1.0));
+  }
+  for (size_t k = 0; k < n; ++k) problem.SetManifold(q[k].data(), &manifold);
+  problem.SetParameterBlockConstant(q[0].data());
+  problem.SetParameterBlockConstant(t[0].data());
+  ceres::Solver::Options so;
+  so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  so.max_num_iterations = 50;
+  so.num_threads = 1;
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &problem, &summary);
+  for (size_t k = 0; k < n; ++k) {
+    Keyframe& kf = keyframes_[track_first_ + k];
+    const Rigid3d pose(Eigen::Quaterniond(q[k][3], q[k][0], q[k][1], q[k][2]).normalized(),
+                       Eigen::Vector3d(t[k][0], t[k][1], t[k][2]));
+    kf.correction = pose * kf.odometry.Inverse();
+  }
+}
+
+void LoopCloser::NewTrack(int64_t t_ns) {
+  ++track_;
+  track_starts_ns_.push_back(t_ns);
+  track_first_ = keyframes_.size();
+}
+
+Rigid3d LoopCloser::CorrectionAt(int64_t t_ns) const {
+  const auto it = std::upper_bound(keyframes_.begin(), keyframes_.end(), t_ns,
+                                   [](int64_t t, const Keyframe& k) { return t < k.t_ns; });
+  if (it == keyframes_.begin()) return Rigid3d::Identity();
+  const Keyframe& k = *std::prev(it);
+  // The frame's track: the number of track starts at or before it. A frame of a track before
+  // that track's first keyframe gets no correction.
+  const int track = static_cast<int>(
+      std::upper_bound(track_starts_ns_.begin(), track_starts_ns_.end(), t_ns) -
+      track_starts_ns_.begin());
+  return k.track == track ? k.correction : Rigid3d::Identity();
+}
+
+}  // namespace optinav::vio
