@@ -216,7 +216,11 @@ for key in '"frontend"' '"backend"' '"median_ms"' '"p95_ms"' '"lost_intervals"' 
 done
 expect_ok "vio with the documented config" "$BIN" vio --dataset "$MICRO" --out "$WORK/vio2.tum" \
   --config "$(dirname "$0")/../../../config/vio_euroc.yaml" --max-frames 20
-expect_ok "vio stereo-only" "$BIN" vio --dataset "$MICRO" --out "$WORK/vio3.tum" --mode stereo --max-frames 20
+expect_ok "vio stereo-only" "$BIN" vio --dataset "$MICRO" --out "$WORK/vio3.tum" --mode stereo --max-frames 20 \
+  --odometry-out "$WORK/vio3_odo.tum" --stats "$WORK/vio3.json"
+grep -q '"loop_closure": true' "$WORK/vio3.json" || fail "vio stereo-only: loop closure did not run"
+cmp -s "$WORK/vio3.tum" "$WORK/vio3_odo.tum" || fail "vio stereo-only: no loop, yet --odometry-out differs"
+expect_error "vio bad --loop-closure" "expected on or off" "$BIN" vio --dataset "$MICRO" --out "$WORK/x.tum" --loop-closure maybe
 expect_error "vio missing dataset" "dataset folder not found" "$BIN" vio --dataset "$WORK/nope" --out "$WORK/x.tum"
 expect_error "vio bad mode" "unknown mode" "$BIN" vio --dataset "$MICRO" --out "$WORK/x.tum" --mode mono
 expect_error "vio airsim on a EuRoC folder" "airsim_rec.txt" "$BIN" vio --dataset "$MICRO" --out "$WORK/x.tum" --format airsim

@@ -368,6 +368,28 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(file.max_imu_gap_s, d.max_imu_gap_s);
   EXPECT_EQ(file.min_tracked_landmarks, d.min_tracked_landmarks);
   EXPECT_EQ(file.max_accel_bias, d.max_accel_bias);
+  const LoopClosureOptions &fl = file.loop_closure, &dl = d.loop_closure;
+  EXPECT_EQ(fl.stereo_only, dl.stereo_only);
+  EXPECT_EQ(fl.stereo_imu, dl.stereo_imu);
+  EXPECT_EQ(fl.orb_features, dl.orb_features);
+  EXPECT_EQ(fl.stereo_epipolar_px, dl.stereo_epipolar_px);
+  EXPECT_EQ(fl.max_depth_baselines, dl.max_depth_baselines);
+  EXPECT_EQ(fl.min_separation_s, dl.min_separation_s);
+  EXPECT_EQ(fl.min_separation_m, dl.min_separation_m);
+  EXPECT_EQ(fl.search_radius_m, dl.search_radius_m);
+  EXPECT_EQ(fl.search_radius_fraction, dl.search_radius_fraction);
+  EXPECT_EQ(fl.max_view_angle_deg, dl.max_view_angle_deg);
+  EXPECT_EQ(fl.max_candidates, dl.max_candidates);
+  EXPECT_EQ(fl.match_ratio, dl.match_ratio);
+  EXPECT_EQ(fl.pnp_px, dl.pnp_px);
+  EXPECT_EQ(fl.min_inliers, dl.min_inliers);
+  EXPECT_EQ(fl.min_interval_s, dl.min_interval_s);
+  EXPECT_EQ(fl.odometry_sigma_m_per_m, dl.odometry_sigma_m_per_m);
+  EXPECT_EQ(fl.odometry_min_sigma_m, dl.odometry_min_sigma_m);
+  EXPECT_EQ(fl.odometry_sigma_rad_per_m, dl.odometry_sigma_rad_per_m);
+  EXPECT_EQ(fl.odometry_min_sigma_rad, dl.odometry_min_sigma_rad);
+  EXPECT_EQ(fl.loop_sigma_m, dl.loop_sigma_m);
+  EXPECT_EQ(fl.loop_sigma_rad, dl.loop_sigma_rad);
 }
 
 TEST(VioConfig, BadConfigsNameTheKey) {
@@ -386,6 +408,18 @@ TEST(VioConfig, BadConfigsNameTheKey) {
   EXPECT_THROW(LoadVioOptions(invalid), Error);
   const std::string mode = optinav::testing::WriteFile(dir / "c.yaml", "mode: mono\n");
   EXPECT_THROW(LoadVioOptions(mode), Error);
+  const std::string loop =
+      optinav::testing::WriteFile(dir / "d.yaml", "loop_closure:\n  min_inliers: 2\n");
+  try {
+    LoadVioOptions(loop);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("loop_closure.min_inliers"), std::string::npos)
+        << e.what();
+  }
+  const std::string flag =
+      optinav::testing::WriteFile(dir / "e.yaml", "loop_closure:\n  stereo_imu: maybe\n");
+  EXPECT_THROW(LoadVioOptions(flag), Error);
 }
 
 }  // namespace
