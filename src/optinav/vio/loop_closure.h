@@ -88,7 +88,7 @@ class LoopCloser {
   Rigid3d CorrectionAt(int64_t t_ns) const;
 
   const std::vector<LoopEdge>& loops() const { return loops_; }
-  // Records sub-stage times (loop_closure.orb, .stereo, .search) when set.
+  // Records sub-stage times (loop_closure.orb, .stereo) when set.
   void set_timing(TimingStats* timing) { timing_ = timing; }
   size_t keyframes() const { return keyframes_.size(); }
 
