@@ -34,7 +34,7 @@ namespace {
 
 struct Condition {
   std::string name;
-  std::string key;  // for --conditions
+  std::string key;            // for --conditions
   double sigma_m = 0;         // noise added
   double factor_sigma_m = 0;  // sigma the fusion is told
   double outlier_fraction = 0;
@@ -48,13 +48,12 @@ vio::GnssFusionOptions& FusionDefaults() {
 }
 
 const std::vector<Condition>& Conditions() {
-  static const std::vector<Condition> c = {
-      {"ideal", "ideal", 0.0, 0.05, 0, 0},
-      {"sigma 0.5 m", "sigma0.5", 0.5, 0.5, 0, 0},
-      {"sigma 1.5 m", "sigma1.5", 1.5, 1.5, 0, 0},
-      {"sigma 3 m", "sigma3", 3.0, 3.0, 0, 0},
-      {"3 m + 10 % outliers", "outliers", 3.0, 3.0, 0.10, 0},
-      {"3 m + 60 s outage", "outage", 3.0, 3.0, 0, 60.0}};
+  static const std::vector<Condition> c = {{"ideal", "ideal", 0.0, 0.05, 0, 0},
+                                           {"sigma 0.5 m", "sigma0.5", 0.5, 0.5, 0, 0},
+                                           {"sigma 1.5 m", "sigma1.5", 1.5, 1.5, 0, 0},
+                                           {"sigma 3 m", "sigma3", 3.0, 3.0, 0, 0},
+                                           {"3 m + 10 % outliers", "outliers", 3.0, 3.0, 0.10, 0},
+                                           {"3 m + 60 s outage", "outage", 3.0, 3.0, 0, 60.0}};
   return c;
 }
 
@@ -409,9 +408,9 @@ int RunGnssBench(int argc, char** argv) {
       const auto it = std::find_if(Conditions().begin(), Conditions().end(),
                                    [&](const Condition& c) { return c.key == k; });
       if (it == Conditions().end())
-        throw Error("unknown condition '" + k +
-                        "' (ideal, sigma0.5, sigma1.5, sigma3, outliers, outage)",
-                    {.field = "--conditions"});
+        throw Error(
+            "unknown condition '" + k + "' (ideal, sigma0.5, sigma1.5, sigma3, outliers, outage)",
+            {.field = "--conditions"});
       selected.push_back(&*it);
     }
     if (!walk.empty()) {

@@ -48,7 +48,7 @@ struct BackendOptions {
   // removed instead of outlier_pixels (0: outlier_pixels). The VIO pipeline sets it
   // (VioOptions::stereo_only_outlier_pixels): it relies on the frontend replacing rejected tracks.
   double stereo_only_outlier_pixels = 0.0;
-  int max_iterations = 8;       // Levenberg-Marquardt iterations per frame
+  int max_iterations = 8;  // Levenberg-Marquardt iterations per frame
   // Levenberg-Marquardt's first damping is 1 / this radius (Ceres' default 1e4 damps the weakly
   // constrained directions, far landmark depths and the velocity/attitude they couple to, so
   // hard that a window solve never converged in max_iterations; with 1e6 most converge in 3-6).

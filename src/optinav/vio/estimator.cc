@@ -401,8 +401,7 @@ bool VioEstimator::TryInitialize(const FramePacket& packet) {
   // (The aligned start initialised the window already, its first frame at the last good position.)
   if (last_init_kind_ != "in-motion-aligned") {
     if (last_good_) state.world_from_body.translation = last_good_->world_from_body.translation;
-    backend_.Initialize(state, features.observations, tilt_sigma, velocity_sigma,
-                        accel_bias_sigma);
+    backend_.Initialize(state, features.observations, tilt_sigma, velocity_sigma, accel_bias_sigma);
   }
   ++initializations_;
   if (lost_since_ns_) {
@@ -430,9 +429,8 @@ bool VioEstimator::MotionInitStep(const FramePacket& packet) {
   const FrontendOutput& features = packet.features;
   if (packet.problem) ResetMotionInit();
   if (init_odometry_) {
-    const StateEstimate e =
-        init_odometry_->AddFrame(t_ns, ImuPreintegration(ImuBias{}, imu_noise_),
-                                 features.observations, features.keyframe);
+    const StateEstimate e = init_odometry_->AddFrame(t_ns, ImuPreintegration(ImuBias{}, imu_noise_),
+                                                     features.observations, features.keyframe);
     const bool finite = e.world_from_body.translation.allFinite() &&
                         e.world_from_body.rotation.coeffs().allFinite();
     if (finite &&
@@ -492,8 +490,7 @@ bool VioEstimator::MotionInitStep(const FramePacket& packet) {
              rotation;
   const Eigen::Vector3d origin =
       last_good_ ? last_good_->world_from_body.translation : Eigen::Vector3d::Zero();
-  const Rigid3d world_from_vo(rotation.normalized(),
-                              origin - rotation * poses.front().translation);
+  const Rigid3d world_from_vo(rotation.normalized(), origin - rotation * poses.front().translation);
   ImuBias bias = prior;
   bias.gyro = r.gyro_bias;
   StateEstimate first;
@@ -501,17 +498,16 @@ bool VioEstimator::MotionInitStep(const FramePacket& packet) {
   first.world_from_body = world_from_vo * poses.front();
   first.velocity = world_from_vo.rotation * r.velocities_vo.front();
   first.bias = bias;
-  const double tilt_sigma =
-      std::max(options_.motion_init_aligned_tilt_sigma_rad, r.tilt_sigma_rad);
+  const double tilt_sigma = std::max(options_.motion_init_aligned_tilt_sigma_rad, r.tilt_sigma_rad);
   const double velocity_sigma =
       std::max(options_.motion_init_aligned_velocity_sigma_m_s, r.first_velocity_sigma_m_s);
   spdlog::info(
       "vio: in-motion alignment over {:.2f} s ({} frames): free gravity norm {:.3f} m/s^2, "
       "tilt sigma {:.2f} deg, gyro bias [{:.4f} {:.4f} {:.4f}] rad/s, first speed {:.2f} m/s "
       "(sigma {:.2f}), whitened residual RMS {:.2f}",
-      (t_ns - first_ns) * 1e-9, times.size(), r.unconstrained_gravity_norm,
-      tilt_sigma * 180 / M_PI, bias.gyro.x(), bias.gyro.y(), bias.gyro.z(),
-      first.velocity.norm(), velocity_sigma, r.whitened_rms);
+      (t_ns - first_ns) * 1e-9, times.size(), r.unconstrained_gravity_norm, tilt_sigma * 180 / M_PI,
+      bias.gyro.x(), bias.gyro.y(), bias.gyro.z(), first.velocity.norm(), velocity_sigma,
+      r.whitened_rms);
   // The window from the run's first frame, then the run's frames again, now with the IMU.
   backend_.Initialize(first, init_frames_.front().observations, tilt_sigma, velocity_sigma,
                       options_.motion_init_accel_bias_sigma);

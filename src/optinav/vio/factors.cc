@@ -177,9 +177,8 @@ class ReprojectionCost : public ceres::SizedCostFunction<2, kPoseSize, kPointSiz
       j.leftCols<3>() = -dr_dworld;
       // df/du = 2 w [d]x + 2 (u d^T + (u.d) I - 2 d u^T), df/dw = -2 u x d.
       const Eigen::Matrix3d df_du =
-          2.0 * w * Hat(d) +
-          2.0 * (u * d.transpose() + u.dot(d) * Eigen::Matrix3d::Identity() -
-                 2.0 * d * u.transpose());
+          2.0 * w * Hat(d) + 2.0 * (u * d.transpose() + u.dot(d) * Eigen::Matrix3d::Identity() -
+                                    2.0 * d * u.transpose());
       j.middleCols<3>(3) = dr_dbody * df_du;
       j.col(6) = dr_dbody * (-2.0 * u.cross(d));
     }

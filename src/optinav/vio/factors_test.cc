@@ -50,12 +50,9 @@ TEST(Reprojection, AnalyticJacobianMatchesAutoDiff) {
     const Eigen::Vector3d p_in_world = world_from_body * (cam_from_body.Inverse() * p_in_cam);
     const Eigen::Vector2d observed =
         p_in_cam.head<2>() / p_in_cam.z() + Eigen::Vector2d(uniform(rng), uniform(rng)) * 0.01;
-    double pose[kPoseSize] = {world_from_body.translation.x(),
-                              world_from_body.translation.y(),
-                              world_from_body.translation.z(),
-                              world_from_body.rotation.x(),
-                              world_from_body.rotation.y(),
-                              world_from_body.rotation.z(),
+    double pose[kPoseSize] = {world_from_body.translation.x(), world_from_body.translation.y(),
+                              world_from_body.translation.z(), world_from_body.rotation.x(),
+                              world_from_body.rotation.y(),    world_from_body.rotation.z(),
                               world_from_body.rotation.w()};
     // Some trials off the unit sphere: the ambient Jacobian must still be the exact derivative.
     if (trial % 3 == 1)

@@ -270,11 +270,12 @@ void GnssFusion::OnFrame(const StateEstimate& estimate, SlidingWindowBackend* ba
   if (backend->alignment_enabled()) {
     alignment_ = backend->alignment();
     if (spdlog::should_log(spdlog::level::debug) && estimate.t_ns >= next_debug_ns_) {
-      spdlog::debug("gnss: alignment at {:.3f} s: translation ({:.3f}, {:.3f}, {:.3f}) m, yaw "
-                    "{:.3f} deg; mean innovation ({:.3f}, {:.3f}, {:.3f}) m",
-                    estimate.t_ns * 1e-9, alignment_->translation.x(), alignment_->translation.y(),
-                    alignment_->translation.z(), alignment_->yaw_rad * 180 / M_PI,
-                    innovation_mean_.x(), innovation_mean_.y(), innovation_mean_.z());
+      spdlog::debug(
+          "gnss: alignment at {:.3f} s: translation ({:.3f}, {:.3f}, {:.3f}) m, yaw "
+          "{:.3f} deg; mean innovation ({:.3f}, {:.3f}, {:.3f}) m",
+          estimate.t_ns * 1e-9, alignment_->translation.x(), alignment_->translation.y(),
+          alignment_->translation.z(), alignment_->yaw_rad * 180 / M_PI, innovation_mean_.x(),
+          innovation_mean_.y(), innovation_mean_.z());
       next_debug_ns_ = estimate.t_ns + 5'000'000'000;
     }
     backend->SetAlignmentYawHeld(estimate.velocity.head<2>().norm() < options_.yaw_hold_speed_m_s);

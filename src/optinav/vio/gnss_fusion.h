@@ -8,10 +8,10 @@
 //     with first-order bias corrections of dp and dR. The GNSS-VIO document's baseline, the
 //     sample linearly interpolated to frame times, is kept as TimeMode::kFrameInterpolated.
 //   - The alignment is initialised once the trajectory spans init_min_distance_m horizontally and
-//     the yaw is known to init_max_yaw_sigma_rad or init_max_yaw_effect_m (RANSAC over pairs of samples, then weighted
-//     least squares on the inliers; the samples older than the window become its prior, the
-//     others factors), then refined in the window, with a random walk per metre travelled that
-//     models the VIO drift; its yaw is held while the horizontal speed is below
+//     the yaw is known to init_max_yaw_sigma_rad or init_max_yaw_effect_m (RANSAC over pairs of
+//     samples, then weighted least squares on the inliers; the samples older than the window become
+//     its prior, the others factors), then refined in the window, with a random walk per metre
+//     travelled that models the VIO drift; its yaw is held while the horizontal speed is below
 //     yaw_hold_speed_m_s. Frames before the alignment are output through the first one.
 //   - Gross outliers are gated before they enter: chi-square test of the innovation against the
 //     sample sigma plus a model of the VIO position uncertainty (grows with the distance and time

@@ -18,7 +18,8 @@ namespace optinav::vio {
 
 std::string LoopClosureOptions::Check() const {
   if (orb_features < 50) return "loop_closure.orb_features must be >= 50";
-  if (!(stereo_epipolar_px > 0) || !(pnp_px > 0)) return "loop_closure pixel thresholds must be > 0";
+  if (!(stereo_epipolar_px > 0) || !(pnp_px > 0))
+    return "loop_closure pixel thresholds must be > 0";
   if (!(max_depth_baselines > 1)) return "loop_closure.max_depth_baselines must be > 1";
   if (!(min_separation_s >= 0) || !(min_separation_m >= 0))
     return "loop_closure.min_separation_* must be >= 0";
@@ -74,6 +75,12 @@ LoopCloser::LoopCloser(const camera::StereoRig& rig, const Rigid3d& body_from_ca
                        const LoopClosureOptions& options)
     : rig_(rig), body_from_cam0_(body_from_cam0), options_(options) {
   if (const std::string e = options.Check(); !e.empty()) throw Error(e, {.field = "loop_closure"});
+  orb_ = cv::ORB::create(options.orb_features);
+  // Essential matrix of right_from_left: x_r^T E x_l = 0.
+  const Eigen::Vector3d& t = rig.right_from_left.translation;
+  Eigen::Matrix3d tx;
+  tx << 0, -t.z(), t.y(), t.z(), 0, -t.x(), -t.y(), t.x(), 0;
+  essential_ = tx * rig.right_from_left.rotation.toRotationMatrix();
 }
 
 LoopCloser::Keyframe LoopCloser::Describe(const StateEstimate& state, const cv::Mat& left,
@@ -82,11 +89,10 @@ LoopCloser::Keyframe LoopCloser::Describe(const StateEstimate& state, const cv::
   kf.t_ns = state.t_ns;
   kf.track = track_;
   kf.odometry = state.world_from_body;
-  cv::Ptr<cv::ORB> orb = cv::ORB::create(options_.orb_features);
   std::vector<cv::KeyPoint> kl;
   cv::Mat dl;
   Timer timer;
-  orb->detectAndCompute(left, cv::noArray(), kl, dl);
+  orb_->detectAndCompute(left, cv::noArray(), kl, dl);
   if (timing_) timing_->Add("loop_closure.orb", timer.ElapsedSeconds());
   timer.Restart();
   kf.descriptors = dl;
@@ -104,11 +110,6 @@ LoopCloser::Keyframe LoopCloser::Describe(const StateEstimate& state, const cv::
   const cv::TermCriteria crit(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.03);
   cv::calcOpticalFlowPyrLK(left, right, pl, pr, ok, err, cv::Size(15, 15), 3, crit,
                            cv::OPTFLOW_USE_INITIAL_FLOW);
-  // Essential matrix of right_from_left: x_r^T E x_l = 0.
-  const Eigen::Vector3d& t = rig_.right_from_left.translation;
-  Eigen::Matrix3d tx;
-  tx << 0, -t.z(), t.y(), t.z(), 0, -t.x(), -t.y(), t.x(), 0;
-  const Eigen::Matrix3d E = tx * rig_.right_from_left.rotation.toRotationMatrix();
   const double max_line = options_.stereo_epipolar_px / rig_.right.fx;
   const double max_depth = options_.max_depth_baselines * rig_.Baseline();
   for (size_t i = 0; i < kl.size(); ++i) {
@@ -116,11 +117,11 @@ LoopCloser::Keyframe LoopCloser::Describe(const StateEstimate& state, const cv::
     const Eigen::Vector2d pix(pr[i].x, pr[i].y);
     if (!rig_.right.InImage(pix)) continue;
     const Eigen::Vector2d nr = rig_.right.PixelToNormalized(pix);
-    const Eigen::Vector3d line = E * kf.normalized[i].homogeneous();
+    const Eigen::Vector3d line = essential_ * kf.normalized[i].homogeneous();
     const double scale = std::hypot(line.x(), line.y());
     if (!(scale > 0) || std::abs(line.dot(nr.homogeneous())) / scale > max_line) continue;
-    const auto p = camera::TriangulateTwoView(Rigid3d::Identity(), rig_.right_from_left,
-                                              kf.normalized[i], nr);
+    const auto p =
+        camera::TriangulateTwoView(Rigid3d::Identity(), rig_.right_from_left, kf.normalized[i], nr);
     if (!p || p->z() < 0.1 || p->z() > max_depth) continue;
     kf.points.push_back(*p);
     kf.point_descriptors.push_back(dl.row(static_cast<int>(i)));
@@ -131,9 +132,9 @@ LoopCloser::Keyframe LoopCloser::Describe(const StateEstimate& state, const cv::
 
 bool LoopCloser::Match(const Keyframe& candidate, const Keyframe& current, const Rigid3d& predicted,
                        double radius_m, Rigid3d* cand_body_from_cur_body, int* inliers) const {
-  const std::vector<cv::DMatch> matches = features::MatchWithRatio(
-      candidate.point_descriptors, current.descriptors, cv::NORM_HAMMING,
-      static_cast<float>(options_.match_ratio));
+  const std::vector<cv::DMatch> matches =
+      features::MatchWithRatio(candidate.point_descriptors, current.descriptors, cv::NORM_HAMMING,
+                               static_cast<float>(options_.match_ratio));
   spdlog::debug("vio: loop candidate {:.3f} s for {:.3f} s: {} points, {} matches",
                 candidate.t_ns * 1e-9, current.t_ns * 1e-9, candidate.points.size(),
                 matches.size());
@@ -150,8 +151,8 @@ bool LoopCloser::Match(const Keyframe& candidate, const Keyframe& current, const
   std::vector<int> inlier_idx;
   const cv::Mat K = cv::Mat::eye(3, 3, CV_64F);
   const double threshold = options_.pnp_px / rig_.left.fx;
-  if (!cv::solvePnPRansac(object, image, K, cv::noArray(), rvec, tvec, false, 300, threshold,
-                          0.999, inlier_idx, cv::SOLVEPNP_AP3P))
+  if (!cv::solvePnPRansac(object, image, K, cv::noArray(), rvec, tvec, false, 300, threshold, 0.999,
+                          inlier_idx, cv::SOLVEPNP_AP3P))
     return false;
   spdlog::debug("vio: loop candidate {:.3f} s: {} PnP inliers", candidate.t_ns * 1e-9,
                 inlier_idx.size());
@@ -177,13 +178,15 @@ bool LoopCloser::Match(const Keyframe& candidate, const Keyframe& current, const
     if ((q.head<2>() / q.z() - Eigen::Vector2d(img_in[k].x, img_in[k].y)).norm() <= threshold) ++n;
   }
   if (n < options_.min_inliers) return false;
-  const Rigid3d measured = body_from_cam0_ * cur_cam_from_cand_cam.Inverse() * body_from_cam0_.Inverse();
+  const Rigid3d measured =
+      body_from_cam0_ * cur_cam_from_cand_cam.Inverse() * body_from_cam0_.Inverse();
   // Consistent with the corrected odometry?
   const Rigid3d diff = predicted.Inverse() * measured;
-  spdlog::debug("vio: loop candidate {:.3f} s: {} refined inliers, {:.2f} m / {:.2f} deg from the "
-                "odometry (radius {:.2f} m)",
-                candidate.t_ns * 1e-9, n, diff.translation.norm(),
-                Eigen::AngleAxisd(diff.rotation).angle() * 180 / M_PI, radius_m);
+  spdlog::debug(
+      "vio: loop candidate {:.3f} s: {} refined inliers, {:.2f} m / {:.2f} deg from the "
+      "odometry (radius {:.2f} m)",
+      candidate.t_ns * 1e-9, n, diff.translation.norm(),
+      Eigen::AngleAxisd(diff.rotation).angle() * 180 / M_PI, radius_m);
   if (diff.translation.norm() > radius_m ||
       Eigen::AngleAxisd(diff.rotation).angle() > options_.max_view_angle_deg * M_PI / 180)
     return false;
@@ -211,7 +214,8 @@ bool LoopCloser::AddKeyframe(const StateEstimate& state, const cv::Mat& left,
 
   // Candidates: the track's old keyframes near the corrected position, similar view direction.
   const Rigid3d cur_pose = current.correction * current.odometry;
-  const Eigen::Vector3d cur_axis = (cur_pose.rotation * body_from_cam0_.rotation) * Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d cur_axis =
+      (cur_pose.rotation * body_from_cam0_.rotation) * Eigen::Vector3d::UnitZ();
   std::vector<std::pair<double, size_t>> candidates;
   for (size_t j = track_first_; j < cur; ++j) {
     const Keyframe& c = keyframes_[j];
@@ -222,7 +226,8 @@ bool LoopCloser::AddKeyframe(const StateEstimate& state, const cv::Mat& left,
     const Rigid3d pose = c.correction * c.odometry;
     const double d = (pose.translation - cur_pose.translation).norm();
     if (d > options_.search_radius_m + options_.search_radius_fraction * since_m) continue;
-    const Eigen::Vector3d axis = (pose.rotation * body_from_cam0_.rotation) * Eigen::Vector3d::UnitZ();
+    const Eigen::Vector3d axis =
+        (pose.rotation * body_from_cam0_.rotation) * Eigen::Vector3d::UnitZ();
     if (AngleBetween(axis, cur_axis) > options_.max_view_angle_deg * M_PI / 180) continue;
     candidates.emplace_back(d, j);
   }
@@ -248,9 +253,10 @@ bool LoopCloser::AddKeyframe(const StateEstimate& state, const cv::Mat& left,
     const Keyframe& now = keyframes_[cur];
     loops_.back().correction_m =
         ((now.correction * now.odometry).translation - cur_pose.translation).norm();
-    spdlog::info("vio: loop closed at {:.3f} s with the keyframe of {:.3f} s ({} inliers, {:.2f} m "
-                 "correction)",
-                 current.t_ns * 1e-9, c.t_ns * 1e-9, inliers, loops_.back().correction_m);
+    spdlog::info(
+        "vio: loop closed at {:.3f} s with the keyframe of {:.3f} s ({} inliers, {:.2f} m "
+        "correction)",
+        current.t_ns * 1e-9, c.t_ns * 1e-9, inliers, loops_.back().correction_m);
     return true;
   }
   return false;
@@ -273,10 +279,9 @@ void LoopCloser::Optimize() {
   ceres::EigenQuaternionManifold manifold;
   auto add = [&](size_t i, size_t j, const Rigid3d& i_from_j, double sm, double sr,
                  ceres::LossFunction* loss) {
-    problem.AddResidualBlock(
-        new ceres::AutoDiffCostFunction<RelativePoseResidual, 6, 4, 3, 4, 3>(
-            new RelativePoseResidual(i_from_j, sm, sr)),
-        loss, q[i].data(), t[i].data(), q[j].data(), t[j].data());
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<RelativePoseResidual, 6, 4, 3, 4, 3>(
+                                 new RelativePoseResidual(i_from_j, sm, sr)),
+                             loss, q[i].data(), t[i].data(), q[j].data(), t[j].data());
   };
   for (size_t k = 0; k + 1 < n; ++k) {
     const Keyframe& a = keyframes_[track_first_ + k];
@@ -323,9 +328,9 @@ Rigid3d LoopCloser::CorrectionAt(int64_t t_ns) const {
   const Keyframe& k = *std::prev(it);
   // The frame's track: the number of track starts at or before it. A frame of a track before
   // that track's first keyframe gets no correction.
-  const int track = static_cast<int>(
-      std::upper_bound(track_starts_ns_.begin(), track_starts_ns_.end(), t_ns) -
-      track_starts_ns_.begin());
+  const int track =
+      static_cast<int>(std::upper_bound(track_starts_ns_.begin(), track_starts_ns_.end(), t_ns) -
+                       track_starts_ns_.begin());
   return k.track == track ? k.correction : Rigid3d::Identity();
 }
 

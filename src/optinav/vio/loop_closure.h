@@ -27,6 +27,7 @@
 #include <vector>
 
 #include <opencv2/core.hpp>
+#include <opencv2/features2d.hpp>
 
 #include "optinav/camera/camera.h"
 #include "optinav/geometry/lie.h"
@@ -41,12 +42,12 @@ struct LoopClosureOptions {
   // ties to the uncorrected odometry).
   bool stereo_only = true;
   bool stereo_imu = false;
-  int orb_features = 2000;            // in the left image
-  double stereo_epipolar_px = 1.5;    // left-right match: distance to the epipolar line
+  int orb_features = 2000;             // in the left image
+  double stereo_epipolar_px = 1.5;     // left-right match: distance to the epipolar line
   double max_depth_baselines = 100.0;  // triangulated points farther than this x baseline dropped
-  double min_separation_s = 15.0;     // a candidate is at least this old ...
-  double min_separation_m = 30.0;     // ... and this far back along the path
-  double search_radius_m = 5.0;       // candidate within this + fraction x path since it
+  double min_separation_s = 15.0;      // a candidate is at least this old ...
+  double min_separation_m = 30.0;      // ... and this far back along the path
+  double search_radius_m = 5.0;        // candidate within this + fraction x path since it
   double search_radius_fraction = 0.01;
   double max_view_angle_deg = 40.0;  // between the optical axes
   int max_candidates = 5;            // tried per keyframe, nearest first
@@ -96,13 +97,13 @@ class LoopCloser {
   struct Keyframe {
     int64_t t_ns = 0;
     int track = 0;
-    Rigid3d odometry;    // world_from_body as estimated
-    Rigid3d correction;  // world_corrected_from_world
-    double path_m = 0;   // odometry path length from the track's first keyframe
-    cv::Mat descriptors;                    // left ORB, all features
+    Rigid3d odometry;     // world_from_body as estimated
+    Rigid3d correction;   // world_corrected_from_world
+    double path_m = 0;    // odometry path length from the track's first keyframe
+    cv::Mat descriptors;  // left ORB, all features
     std::vector<Eigen::Vector2d> normalized;  // left features, undistorted normalized
-    cv::Mat point_descriptors;              // left features with a stereo point
-    std::vector<Eigen::Vector3d> points;    // in the left camera frame
+    cv::Mat point_descriptors;                // left features with a stereo point
+    std::vector<Eigen::Vector3d> points;      // in the left camera frame
   };
   Keyframe Describe(const StateEstimate& state, const cv::Mat& left, const cv::Mat& right) const;
   // The relative pose cand_body_from_cur_body from matches, or false.
@@ -113,13 +114,15 @@ class LoopCloser {
   camera::StereoRig rig_;
   Rigid3d body_from_cam0_;
   LoopClosureOptions options_;
+  cv::Ptr<cv::Feature2D> orb_;
+  Eigen::Matrix3d essential_;  // of right_from_left: x_r^T E x_l = 0
   std::vector<Keyframe> keyframes_;
   std::vector<LoopEdge> loops_;
   std::vector<std::pair<size_t, size_t>> loop_indices_;  // into keyframes_, with loops_
   TimingStats* timing_ = nullptr;
   int track_ = 0;
   std::vector<int64_t> track_starts_ns_;  // of tracks 1, 2, ... (track 0 starts first)
-  size_t track_first_ = 0;  // index of the track's first keyframe
+  size_t track_first_ = 0;                // index of the track's first keyframe
 };
 
 }  // namespace optinav::vio

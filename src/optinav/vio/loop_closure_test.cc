@@ -79,9 +79,10 @@ TEST(LoopClosure, SquareFlightClosesItsLoop) {
   options.vio.mode = VioMode::kStereo;
   const VioRunResult r = RunVioOnEuroc(o.out_dir, options);
   ASSERT_TRUE(r.loop_closure_ran);
-  const Trajectory gt = io::ReadTrajectory(o.out_dir + "/mav0/state_groundtruth_estimate0/data.csv");
-  const double before = MeanError(gt, EstimatesToTrajectory(r.odometry.empty() ? r.estimates
-                                                                              : r.odometry));
+  const Trajectory gt =
+      io::ReadTrajectory(o.out_dir + "/mav0/state_groundtruth_estimate0/data.csv");
+  const double before =
+      MeanError(gt, EstimatesToTrajectory(r.odometry.empty() ? r.estimates : r.odometry));
   const double after = MeanError(gt, EstimatesToTrajectory(r.estimates));
   double worst_m = 0, worst_deg = 0;
   for (const LoopEdge& l : r.loops) {

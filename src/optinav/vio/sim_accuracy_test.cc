@@ -106,9 +106,10 @@ TEST(SimAccuracy, DroneStereoInertial) {
   VioRunOptions priors;
   priors.vio.motion_init_window_s = 0;
   const Accuracy b = Evaluate(dir, RunVioOnEuroc(dir, priors));
-  std::printf("same flight, loose-prior in-motion start: %s init, APE RMSE (SE3) %.3f m = %.2f %% "
-              "(< 0.5 %%)\n",
-              b.init.c_str(), b.ape_rmse_m, 100 * b.ape_rmse_m / b.path_m);
+  std::printf(
+      "same flight, loose-prior in-motion start: %s init, APE RMSE (SE3) %.3f m = %.2f %% "
+      "(< 0.5 %%)\n",
+      b.init.c_str(), b.ape_rmse_m, 100 * b.ape_rmse_m / b.path_m);
   EXPECT_EQ(b.init, "in-motion-priors");
   EXPECT_LT(100 * b.ape_rmse_m / b.path_m, 0.5);
 }

@@ -111,12 +111,11 @@ ViAlignmentResult SolveViAlignment(const std::vector<int64_t>& t_ns,
   Eigen::VectorXd x = a.colPivHouseholderQr().solve(b);
   Eigen::Vector3d gravity = x.tail<3>();
   out.unconstrained_gravity_norm = gravity.norm();
-  if (!x.allFinite() ||
-      std::abs(gravity.norm() - kGravityMagnitude) >
-          options.max_gravity_norm_error * kGravityMagnitude) {
-    out.failure = fmt::format("gravity norm {:.2f} m/s^2 is not {:.2f} within {:.0f} %",
-                              gravity.norm(), kGravityMagnitude,
-                              100 * options.max_gravity_norm_error);
+  if (!x.allFinite() || std::abs(gravity.norm() - kGravityMagnitude) >
+                            options.max_gravity_norm_error * kGravityMagnitude) {
+    out.failure =
+        fmt::format("gravity norm {:.2f} m/s^2 is not {:.2f} within {:.0f} %", gravity.norm(),
+                    kGravityMagnitude, 100 * options.max_gravity_norm_error);
     return out;
   }
 

@@ -46,7 +46,7 @@ struct ViAlignmentResult {
   Eigen::Quaterniond world_from_vo = Eigen::Quaterniond::Identity();
   // Diagnostics.
   double unconstrained_gravity_norm = 0;
-  double whitened_rms = 0;    // of the final velocity/gravity solve
+  double whitened_rms = 0;  // of the final velocity/gravity solve
   double max_whitened_residual = 0;
   double position_rms_m = 0;  // unwhitened position-row residual RMS
   // Standard deviation of the gravity direction (rad), from the final solve's covariance.

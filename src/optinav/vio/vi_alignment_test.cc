@@ -28,7 +28,8 @@ Case MakeCase(double duration_s, const ImuBias& true_bias, double position_noise
               double rotation_noise_rad = 0, double scale_error = 1.0) {
   const AnalyticTrajectory traj;
   Case c;
-  c.vo_from_world = Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 0.5).normalized()));
+  c.vo_from_world =
+      Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 0.5).normalized()));
   const Eigen::Vector3d vo_origin(4, -1, 2);
   std::mt19937 rng(7);
   std::normal_distribution<double> normal(0, 1);
@@ -40,8 +41,8 @@ Case MakeCase(double duration_s, const ImuBias& true_bias, double position_noise
     Rigid3d pose(c.vo_from_world * traj.Rotation(t),
                  scale_error * (c.vo_from_world * traj.Position(t)) + vo_origin);
     pose.translation += position_noise_m * Eigen::Vector3d(normal(rng), normal(rng), normal(rng));
-    pose.rotation = (pose.rotation * ExpSO3(rotation_noise_rad * Eigen::Vector3d(
-                                                normal(rng), normal(rng), normal(rng))))
+    pose.rotation = (pose.rotation * ExpSO3(rotation_noise_rad *
+                                            Eigen::Vector3d(normal(rng), normal(rng), normal(rng))))
                         .normalized();
     c.vo_from_body.push_back(pose);
     c.velocity_vo.push_back(c.vo_from_world * traj.Velocity(t));
@@ -80,9 +81,10 @@ TEST(ViAlignment, RecoversGravityVelocityAndGyroBiasFromExactData) {
   ASSERT_TRUE(r.ok) << r.failure;
   const double tilt = TiltErrorRad(r, c), vel = MaxVelocityError(r, c);
   const double bg = (r.gyro_bias - bias.gyro).norm();
-  std::printf("exact data, 1.5 s: tilt error %.4f deg (< 0.05), velocity %.4f m/s (< 0.01), "
-              "gyro bias %.2e rad/s (< 2e-4), free |g| %.3f\n",
-              tilt / kDeg, vel, bg, r.unconstrained_gravity_norm);
+  std::printf(
+      "exact data, 1.5 s: tilt error %.4f deg (< 0.05), velocity %.4f m/s (< 0.01), "
+      "gyro bias %.2e rad/s (< 2e-4), free |g| %.3f\n",
+      tilt / kDeg, vel, bg, r.unconstrained_gravity_norm);
   EXPECT_LT(tilt, 0.05 * kDeg);
   EXPECT_LT(vel, 0.01);
   EXPECT_LT(bg, 2e-4);
@@ -98,10 +100,11 @@ TEST(ViAlignment, NoisyOdometryAndUnknownAccelBias) {
   ASSERT_TRUE(r.ok) << r.failure;
   const double tilt = TiltErrorRad(r, c), vel = MaxVelocityError(r, c);
   const double bg = (r.gyro_bias - bias.gyro).norm();
-  std::printf("5 mm / 2 mrad odometry noise, 0.05 m/s^2 accel bias: tilt error %.3f deg "
-              "(< 0.5, reported sigma %.3f deg), velocity %.3f m/s (< 0.1), gyro bias %.2e "
-              "(< 3e-3), whitened RMS %.2f max %.2f\n",
-              tilt / kDeg, r.tilt_sigma_rad / kDeg, vel, bg, r.whitened_rms, r.max_whitened_residual);
+  std::printf(
+      "5 mm / 2 mrad odometry noise, 0.05 m/s^2 accel bias: tilt error %.3f deg "
+      "(< 0.5, reported sigma %.3f deg), velocity %.3f m/s (< 0.1), gyro bias %.2e "
+      "(< 3e-3), whitened RMS %.2f max %.2f\n",
+      tilt / kDeg, r.tilt_sigma_rad / kDeg, vel, bg, r.whitened_rms, r.max_whitened_residual);
   EXPECT_LT(tilt, 0.5 * kDeg);
   EXPECT_LT(vel, 0.1);
   EXPECT_LT(bg, 3e-3);
@@ -114,7 +117,8 @@ TEST(ViAlignment, RejectsOdometryThatDisagreesWithTheImu) {
   for (size_t k = c.vo_from_body.size() / 2; k < c.vo_from_body.size(); ++k)
     c.vo_from_body[k].translation += Eigen::Vector3d(0.3, 0, 0);
   const ViAlignmentResult r = SolveViAlignment(c.t_ns, c.vo_from_body, c.pre);
-  std::printf("0.3 m jump: ok=%d (%s) rms %.2f max %.2f\n", r.ok, r.failure.c_str(), r.whitened_rms, r.max_whitened_residual);
+  std::printf("0.3 m jump: ok=%d (%s) rms %.2f max %.2f\n", r.ok, r.failure.c_str(), r.whitened_rms,
+              r.max_whitened_residual);
   EXPECT_FALSE(r.ok);
   EXPECT_FALSE(r.failure.empty());
 }
