@@ -288,6 +288,16 @@ printf '#timestamp [ns],x,y,z\n' > "$WORK/g_empty.csv"
 expect_error "vio gnss empty file" "no usable GNSS sample" "$BIN" vio --dataset "$MICRO" --gnss \
   --gnss-file "$WORK/g_empty.csv" --out "$WORK/x.tum"
 
+# --- bench gnss: argument errors come before any rendering.
+expect_error "bench gnss unknown sequence" "unknown sequence 'moon'" \
+  "$BIN" bench gnss --out "$WORK/bg" --sequences moon
+expect_error "bench gnss unknown condition" "unknown condition 'rain'" \
+  "$BIN" bench gnss --out "$WORK/bg" --conditions rain
+expect_error "bench gnss unknown norm" "unknown norm 'l1'" "$BIN" bench gnss --out "$WORK/bg" --norms l1
+expect_error "bench gnss seeds" "--seeds" "$BIN" bench gnss --out "$WORK/bg" --seeds 0
+expect_error "bench without a benchmark" "usage: optinav bench gnss" "$BIN" bench
+[[ -e "$WORK/bg" ]] && fail "bench gnss created its output folder on bad arguments"
+
 # --- The demo.
 expect_ok "demo" "$BIN" demo --out "$WORK/demo" --duration 60
 for f in groundtruth.csv estimate.tum ape_se3.json ape_se3.svg rpe_10m.json; do

@@ -170,39 +170,102 @@ double ErrorAtTime(const std::vector<std::pair<double, double>>& series, double 
   return NAN;
 }
 
+// A run's files in OUT/runs: <stem>.tum (the estimate as output: ENU when aligned, else the VIO
+// world) and <stem>.json (what the VIO run reported). Written as each run finishes, so that
+// --reuse resumes an interrupted benchmark or adds seeds; the metrics are always recomputed.
+std::string RunFileStem(const RunResult& r) {
+  std::string name = fmt::format("{}_{}_{}_seed{}", r.sequence, r.condition, r.norm, r.seed);
+  for (char& ch : name)
+    if (!std::isalnum(static_cast<unsigned char>(ch)) && ch != '.' && ch != '_') ch = '_';
+  return name;
+}
+
+double JsonNumber(const nlohmann::json& j, const char* key) {
+  return j.contains(key) && j.at(key).is_number() ? j.at(key).get<double>() : NAN;
+}
+
+// Loads a finished run of the same sequence, condition, norm and seed; false if there is none.
+bool LoadRun(const fs::path& stem, RunResult* r) {
+  const fs::path json_path = stem.string() + ".json", tum_path = stem.string() + ".tum";
+  if (!fs::is_regular_file(json_path) || !fs::is_regular_file(tum_path)) return false;
+  try {
+    const nlohmann::json j = nlohmann::json::parse(io::ReadFileToString(json_path.string()));
+    if (j.at("sequence") != r->sequence || j.at("condition") != r->condition ||
+        j.at("norm") != r->norm || j.at("seed") != r->seed)
+      throw Error("names another run", {.file = json_path.string()});
+    r->poses = j.at("poses").get<size_t>();
+    r->lost = j.at("lost_intervals").get<size_t>();
+    r->factors = j.at("factors").get<size_t>();
+    r->rejected = j.at("rejected").get<size_t>();
+    r->aligned = j.at("enu_aligned").get<bool>();
+    r->backend_median_ms = JsonNumber(j, "backend_median_ms");
+    r->backend_keyframe_median_ms = JsonNumber(j, "backend_keyframe_median_ms");
+    r->estimate = io::ReadTrajectory(tum_path.string());
+    return !r->estimate.empty();
+  } catch (const std::exception& e) {
+    spdlog::warn("bench gnss: not reusing {}: {}", json_path.string(), e.what());
+    return false;
+  }
+}
+
+void SaveRun(const fs::path& stem, const RunResult& r) {
+  io::WriteTrajectory(stem.string() + ".tum", r.estimate, io::TrajectoryFormat::kTum);
+  const nlohmann::json j = {{"sequence", r.sequence},
+                            {"condition", r.condition},
+                            {"norm", r.norm},
+                            {"seed", r.seed},
+                            {"poses", r.poses},
+                            {"lost_intervals", r.lost},
+                            {"factors", r.factors},
+                            {"rejected", r.rejected},
+                            {"enu_aligned", r.aligned},
+                            {"backend_median_ms", r.backend_median_ms},
+                            {"backend_keyframe_median_ms", r.backend_keyframe_median_ms}};
+  io::WriteFileAtomically(stem.string() + ".json", j.dump(2) + "\n");
+}
+
+// Runs the VIO on a condition (nullptr: no GNSS), or reuses the run's files, and evaluates it.
 RunResult RunOne(const Sequence& seq, const Condition* condition, const std::string& norm, int seed,
-                 const Trajectory* vio_alone) {
+                 const Trajectory* vio_alone, const std::string& out, bool reuse,
+                 bool* reused = nullptr) {
   RunResult r;
   r.sequence = seq.name;
   r.condition = condition ? condition->name : "no GNSS";
   r.norm = condition ? norm : "-";
   r.seed = seed;
+  const fs::path stem = fs::path(out) / "runs" / RunFileStem(r);
+  const bool loaded = reuse && LoadRun(stem, &r);
+  if (reused) *reused = loaded;
   try {
-    vio::VioRunOptions options;
-    options.threaded = false;
-    if (condition) {
-      vio::GnssFusionOptions g = FusionDefaults();
-      g.norm = *vio::ParseGnssNorm(norm);
-      g.lever_arm_in_body = seq.lever;
-      options.gnss = g;
-      options.gnss_samples = MakeGnss(seq, *condition, seed);
+    if (!loaded) {
+      vio::VioRunOptions options;
+      options.threaded = false;
+      if (condition) {
+        vio::GnssFusionOptions g = FusionDefaults();
+        g.norm = *vio::ParseGnssNorm(norm);
+        g.lever_arm_in_body = seq.lever;
+        options.gnss = g;
+        options.gnss_samples = MakeGnss(seq, *condition, seed);
+      }
+      const vio::VioRunResult v = vio::RunVioOnEuroc(seq.dir, options);
+      r.poses = v.estimates.size();
+      r.lost = v.lost.size();
+      r.factors = v.gnss_stats.factors;
+      r.rejected = v.gnss_stats.rejected;
+      if (v.timing.count("backend")) r.backend_median_ms = v.timing.at("backend").median_s * 1e3;
+      if (v.timing.count("backend_keyframe"))
+        r.backend_keyframe_median_ms = v.timing.at("backend_keyframe").median_s * 1e3;
+      Trajectory est = condition ? vio::EstimatesToEnuTrajectory(v.estimates) : Trajectory();
+      // Without an ENU alignment (too little motion for the GNSS noise to fix the yaw) the
+      // output stays in the VIO world frame, as `optinav vio --gnss` writes it: its ATE counts,
+      // it has no global error.
+      r.aligned = !est.empty();
+      if (est.empty()) est = vio::EstimatesToTrajectory(v.estimates);
+      if (est.empty()) throw Error("no pose estimated");
+      r.estimate = est;
+      SaveRun(stem, r);
     }
-    const vio::VioRunResult v = vio::RunVioOnEuroc(seq.dir, options);
-    r.poses = v.estimates.size();
-    r.lost = v.lost.size();
-    r.factors = v.gnss_stats.factors;
-    r.rejected = v.gnss_stats.rejected;
-    if (v.timing.count("backend")) r.backend_median_ms = v.timing.at("backend").median_s * 1e3;
-    if (v.timing.count("backend_keyframe"))
-      r.backend_keyframe_median_ms = v.timing.at("backend_keyframe").median_s * 1e3;
-    Trajectory est = condition ? vio::EstimatesToEnuTrajectory(v.estimates) : Trajectory();
-    // Without an ENU alignment (too little motion for the GNSS noise to fix the yaw) the output
-    // stays in the VIO world frame, as `optinav vio --gnss` writes it: its ATE counts, it has
-    // no global error.
-    r.aligned = !est.empty();
-    if (est.empty()) est = vio::EstimatesToTrajectory(v.estimates);
-    if (est.empty()) throw Error("no pose estimated");
-    r.estimate = est;
+    const Trajectory& est = r.estimate;
     eval::SyncedPair synced = eval::Synchronize(seq.truth, est);
     {
       Trajectory aligned = synced.est;
@@ -385,7 +448,10 @@ int RunGnssBench(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--jobs", jobs, "runs in parallel (each VIO run is single-threaded)")
       ->capture_default_str();
-  app.add_flag("--reuse", reuse, "reuse complete sequences already rendered in OUT/sequences");
+  app.add_flag(
+      "--reuse", reuse,
+      "reuse complete sequences in OUT/sequences and finished runs in OUT/runs (resume, add "
+      "seeds)");
   app.add_option("--log-level", log_level, "trace|debug|info|warn|error|off")
       ->capture_default_str();
   try {
@@ -420,7 +486,7 @@ int RunGnssBench(int argc, char** argv) {
       FusionDefaults().alignment_walk_m_per_sqrt_m = w[0];
       FusionDefaults().alignment_walk_rad_per_sqrt_m = w[1];
     }
-    fs::create_directories(out);
+    fs::create_directories(fs::path(out) / "runs");
     std::vector<Sequence> seqs;
     for (const std::string& s : seq_names) seqs.push_back(PrepareSequence(s, out, scale, reuse));
 
@@ -428,7 +494,7 @@ int RunGnssBench(int argc, char** argv) {
     std::vector<RunResult> runs;
     std::map<std::string, Trajectory> alone;
     for (const Sequence& s : seqs) {
-      runs.push_back(RunOne(s, nullptr, "", 0, nullptr));
+      runs.push_back(RunOne(s, nullptr, "", 0, nullptr, out, reuse));
       if (!runs.back().ok) throw Error("VIO alone failed: " + runs.back().error, {.file = s.dir});
       std::printf(
           "bench gnss: %s (%.0f m): VIO alone ATE %.3f m, global (first 5 s aligned) %.3f m, "
@@ -455,12 +521,15 @@ int RunGnssBench(int argc, char** argv) {
     auto worker = [&] {
       for (size_t i; (i = next++) < todo.size();) {
         const Job& j = todo[i];
-        results[i] = RunOne(*j.seq, j.condition, j.norm, j.seed, &alone[j.seq->name]);
+        bool reused = false;
+        results[i] =
+            RunOne(*j.seq, j.condition, j.norm, j.seed, &alone[j.seq->name], out, reuse, &reused);
         std::lock_guard lock(print);
         const RunResult& r = results[i];
         std::printf(
-            "bench gnss: [%zu/%zu] %s, %s, %s, seed %d: %s\n", ++done, todo.size(),
+            "bench gnss: [%zu/%zu] %s, %s, %s, seed %d: %s%s\n", ++done, todo.size(),
             r.sequence.c_str(), r.condition.c_str(), r.norm.c_str(), r.seed,
+            reused ? "(reused) " : "",
             r.ok ? fmt::format("ATE {:.3f} m, global {:.3f} m", r.ate_se3, r.global_rmse).c_str()
                  : ("failed: " + r.error).c_str());
         std::fflush(stdout);
@@ -600,22 +669,12 @@ int RunGnssBench(int argc, char** argv) {
     io::WriteFileAtomically((fs::path(out) / "results.csv").string(), csv);
     io::WriteFileAtomically((fs::path(out) / "results.json").string(), j.dump(2) + "\n");
     io::WriteFileAtomically((fs::path(out) / "tables.md").string(), report);
-    // Every run's estimate (TUM; ENU when aligned, else the VIO world), for evo or optinav eval.
-    fs::create_directories(fs::path(out) / "runs");
-    for (const RunResult& r : runs) {
-      if (!r.ok) continue;
-      std::string name =
-          fmt::format("{}_{}_{}_seed{}.tum", r.sequence, r.condition, r.norm, r.seed);
-      for (char& ch : name)
-        if (!std::isalnum(static_cast<unsigned char>(ch)) && ch != '.' && ch != '_') ch = '_';
-      io::WriteTrajectory((fs::path(out) / "runs" / name).string(), r.estimate,
-                          io::TrajectoryFormat::kTum);
-    }
     for (const Sequence& s : seqs)
       WritePlot((fs::path(out) / ("error_" + s.name + ".svg")).string(), runs, s.name,
                 s.outage_start_s);
-    std::printf("bench gnss: results.csv, results.json, tables.md, error_*.svg, runs/*.tum -> %s\n",
-                out.c_str());
+    std::printf(
+        "bench gnss: results.csv, results.json, tables.md, error_*.svg, runs/*.tum+json -> %s\n",
+        out.c_str());
   } catch (const Error& e) {
     spdlog::error("{}", e.what());
     return 1;
