@@ -31,6 +31,7 @@ std::string LoopClosureOptions::Check() const {
   if (!(match_ratio > 0 && match_ratio <= 1)) return "loop_closure.match_ratio must be in (0, 1]";
   if (min_inliers < 6) return "loop_closure.min_inliers must be >= 6";
   if (!(min_interval_s >= 0)) return "loop_closure.min_interval_s must be >= 0";
+  if (!(loop_consistency_m > 0)) return "loop_closure.loop_consistency_m must be > 0";
   if (!(odometry_sigma_m_per_m >= 0) || !(odometry_min_sigma_m > 0) ||
       !(odometry_sigma_rad_per_m >= 0) || !(odometry_min_sigma_rad > 0) || !(loop_sigma_m > 0) ||
       !(loop_sigma_rad > 0))
@@ -236,8 +237,17 @@ bool LoopCloser::AddKeyframe(const StateEstimate& state, const cv::Mat& left,
     candidates.resize(options_.max_candidates);
   for (const auto& [d, j] : candidates) {
     const Keyframe& c = keyframes_[j];
-    const double radius =
+    double radius =
         options_.search_radius_m + options_.search_radius_fraction * (current.path_m - c.path_m);
+    if (!loops_.empty() && loop_indices_.back().second >= track_first_) {
+      // The odometry chained through the last loop (old o, new n) predicts this one with the
+      // drift over o..c and n..current only.
+      const auto [o, n] = loop_indices_.back();
+      const double chained_m =
+          std::abs(c.path_m - keyframes_[o].path_m) + (current.path_m - keyframes_[n].path_m);
+      radius = std::min(radius,
+                        options_.loop_consistency_m + options_.search_radius_fraction * chained_m);
+    }
     const Rigid3d predicted = (c.correction * c.odometry).Inverse() * cur_pose;
     Rigid3d measured;
     int inliers = 0;

@@ -55,11 +55,17 @@ struct LoopClosureOptions {
   double pnp_px = 2.0;               // PnP RANSAC threshold, pixels
   int min_inliers = 25;
   double min_interval_s = 1.0;  // between two accepted loops
-  // Pose-graph sigmas: odometry per metre between keyframes (with floors), loop edges.
-  double odometry_sigma_m_per_m = 0.01;
-  double odometry_min_sigma_m = 0.01;
-  double odometry_sigma_rad_per_m = 0.0005;
-  double odometry_min_sigma_rad = 0.0005;
+  // After a loop, a new one must agree with the odometry chained through the last loop within
+  // this + search_radius_fraction x the chained path (the search radius alone allows metres).
+  double loop_consistency_m = 0.5;
+  // Pose-graph sigmas: odometry per metre between keyframes (with floors), loop edges. The
+  // odometry sigmas must allow the drift stereo odometry really has (about 1 % of the distance
+  // on the car route): tighter ones make a correct loop of several metres look like an outlier
+  // to the loop edges' Cauchy loss, and the loop corrects only a fraction of the drift.
+  double odometry_sigma_m_per_m = 0.05;
+  double odometry_min_sigma_m = 0.02;
+  double odometry_sigma_rad_per_m = 0.002;
+  double odometry_min_sigma_rad = 0.001;
   double loop_sigma_m = 0.05;
   double loop_sigma_rad = 0.005;
 

@@ -94,13 +94,13 @@ TEST(LoopClosure, SquareFlightClosesItsLoop) {
   std::printf(
       "square flight, stereo-only, %zu poses: %zu loop(s); worst loop against the ground truth "
       "%.3f m (< 0.3), %.2f deg (< 2); mean error (first poses aligned) %.3f m odometry -> %.3f m "
-      "corrected; loop closure median %.1f ms per keyframe\n",
+      "corrected (< half); loop closure median %.1f ms per keyframe\n",
       r.estimates.size(), r.loops.size(), worst_m, worst_deg, before, after,
       r.timing.count("loop_closure") ? r.timing.at("loop_closure").median_s * 1e3 : 0.0);
   ASSERT_GE(r.loops.size(), 1u);
   EXPECT_LT(worst_m, 0.3);
   EXPECT_LT(worst_deg, 2.0);
-  EXPECT_LE(after, before);
+  EXPECT_LT(after, 0.5 * before);
   ASSERT_EQ(r.odometry.size(), r.estimates.size());
 }
 
