@@ -441,6 +441,10 @@ int RunGnssBench(int argc, char** argv) {
   app.add_option("--norms", norms, "l2,huber,tukey (comma separated)")->capture_default_str();
   app.add_option("--conditions", conditions, "GNSS conditions (comma separated)")
       ->capture_default_str();
+  app.add_option("--gnss-factor-scale", FusionDefaults().factor_sigma_scale,
+                 "GNSS factor sigma x this for every fused run (as optinav vio "
+                 "--gnss-factor-scale)")
+      ->capture_default_str();
   app.add_option("--gnss-walk", walk,
                  "alignment random walk M_PER_SQRT_M,RAD_PER_SQRT_M for every fused run (default "
                  "from GnssFusionOptions, as optinav vio --gnss-walk)");
@@ -479,6 +483,8 @@ int RunGnssBench(int argc, char** argv) {
             {.field = "--conditions"});
       selected.push_back(&*it);
     }
+    if (const std::string e = FusionDefaults().Check(); !e.empty())
+      throw Error(e, {.field = "--gnss-factor-scale"});
     if (!walk.empty()) {
       const std::vector<double> w =
           ParseNumbers(walk, 2, "M_PER_SQRT_M,RAD_PER_SQRT_M", "--gnss-walk");

@@ -115,7 +115,8 @@ int RunVio(int argc, char** argv) {
   std::string gnss_file, gnss_format = "auto", gnss_norm = "huber", gnss_time = "exact",
                          gnss_origin, gnss_lever, gnss_walk, gnss_drift, wgs84_out, geojson_out,
                          rejected_out;
-  double gnss_norm_param = -1, gnss_sigma = -1, gnss_gate = -1, gnss_init_distance = -1;
+  double gnss_norm_param = -1, gnss_sigma = -1, gnss_gate = -1, gnss_init_distance = -1,
+         gnss_factor_scale = -1;
   double gnss_init_yaw_sigma = -1;
   app.add_option("--dataset", dataset, "sequence folder (holding mav0/)")->required();
   app.add_option("--format", format, "dataset format: euroc|airsim (airsim: stereo-only)")
@@ -168,6 +169,9 @@ int RunVio(int argc, char** argv) {
                  fmt::format("horizontal distance before the ENU alignment is initialised, m "
                              "(default {:g})",
                              vio::GnssFusionOptions{}.init_min_distance_m));
+  app.add_option("--gnss-factor-scale", gnss_factor_scale,
+                 fmt::format("GNSS factor sigma x this (the gate is not scaled; default {:g})",
+                             vio::GnssFusionOptions{}.factor_sigma_scale));
   app.add_option("--gnss-walk", gnss_walk,
                  "VIO drift vs ENU as a random walk of the alignment per metre travelled: "
                  "M_PER_SQRT_M,RAD_PER_SQRT_M (default from GnssFusionOptions)");
@@ -264,6 +268,7 @@ int RunVio(int argc, char** argv) {
       g.lever_arm_in_body = gnss_input->lever_arm_in_body;
       if (gnss_gate != -1) g.gate_chi2 = gnss_gate;
       if (gnss_init_distance != -1) g.init_min_distance_m = gnss_init_distance;
+      if (gnss_factor_scale != -1) g.factor_sigma_scale = gnss_factor_scale;
       if (gnss_init_yaw_sigma != -1) {
         if (!(gnss_init_yaw_sigma > 0))
           throw Error("must be > 0 (degrees)", {.field = "--gnss-init-yaw-sigma"});

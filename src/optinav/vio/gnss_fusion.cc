@@ -64,6 +64,8 @@ std::string GnssFusionOptions::Check() const {
   if (!(drift_fraction >= 0) || !(drift_m_per_sqrt_s >= 0) || !(min_state_sigma_m > 0))
     return "VIO drift model parameters must be >= 0 (min_state_sigma_m > 0)";
   if (!(model_sigma_m >= 0)) return "model_sigma_m must be >= 0";
+  if (!(factor_sigma_scale > 0) || !std::isfinite(factor_sigma_scale))
+    return "factor_sigma_scale must be > 0";
   if (!(reopen_after_s > 0)) return "reopen_after_s must be > 0";
   if (!(reopen_yaw_sigma_rad >= 0)) return "reopen_yaw_sigma_rad must be >= 0";
   if (drift_window_samples < 1) return "drift_window_samples must be >= 1";
@@ -391,7 +393,7 @@ void GnssFusion::AddFactor(const GnssSample& sample, double state_var_m2,
   // gate accepted inside the norm's threshold (Tukey would otherwise ignore every sample once
   // the VIO drifted past k sample sigmas, and never recover).
   GnssSample s = sample;
-  s.sigma_m = std::sqrt(s.sigma_m * s.sigma_m + state_var_m2);
+  s.sigma_m = options_.factor_sigma_scale * std::sqrt(s.sigma_m * s.sigma_m + state_var_m2);
   backend->AddTimedFactor(std::make_unique<GnssFactor>(s, options_.lever_arm_in_body, loss_.get()));
   ++stats_.factors;
 }

@@ -84,6 +84,10 @@ struct GnssFusionOptions {
   // Added in quadrature to every sample's sigma (factors, gate, initialisation): what the GNSS
   // sigma does not cover (VIO interpolation between states, time sync, linearisation).
   double model_sigma_m = 0.15;
+  // The factor's sigma (the innovation sigma) times this; the gate is not scaled. Above 1, the
+  // window weighs GNSS less than its sigma says: with 3 m white noise at 5 Hz the samples'
+  // full weight moves the trajectory's shape (see docs/VIO.md, GNSS limits).
+  double factor_sigma_scale = 1.0;
   // Rejections for this long widen the gate (x2 sigma); the widened floor then halves with
   // each accepted sample, so a VIO that drifted more than modelled is pulled back smoothly.
   double reopen_after_s = 5.0;

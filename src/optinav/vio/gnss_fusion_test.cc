@@ -361,6 +361,12 @@ TEST(GnssFusion, BadSamplesAreRejectedWithAReason) {
   GnssFusionOptions bad;
   bad.init_min_samples = 1;
   EXPECT_FALSE(bad.Check().empty());
+  for (double scale : {0.0, -1.0, double(NAN), double(INFINITY)}) {
+    GnssFusionOptions o;
+    o.factor_sigma_scale = scale;
+    EXPECT_NE(o.Check().find("factor_sigma_scale"), std::string::npos) << scale;
+  }
+  EXPECT_EQ(GnssFusionOptions().Check(), "");
 }
 
 }  // namespace
