@@ -180,6 +180,15 @@ std::string RunFileStem(const RunResult& r) {
   return name;
 }
 
+// The fusion settings a GNSS run was made with (--gnss-factor-scale, --gnss-walk): a run made
+// with other settings is not reused.
+nlohmann::json FusionSettings() {
+  const vio::GnssFusionOptions& o = FusionDefaults();
+  return {{"factor_sigma_scale", o.factor_sigma_scale},
+          {"alignment_walk_m_per_sqrt_m", o.alignment_walk_m_per_sqrt_m},
+          {"alignment_walk_rad_per_sqrt_m", o.alignment_walk_rad_per_sqrt_m}};
+}
+
 double JsonNumber(const nlohmann::json& j, const char* key) {
   return j.contains(key) && j.at(key).is_number() ? j.at(key).get<double>() : NAN;
 }
@@ -193,6 +202,9 @@ bool LoadRun(const fs::path& stem, RunResult* r) {
     if (j.at("sequence") != r->sequence || j.at("condition") != r->condition ||
         j.at("norm") != r->norm || j.at("seed") != r->seed)
       throw Error("names another run", {.file = json_path.string()});
+    if (r->condition != "no GNSS" && j.value("gnss_settings", nlohmann::json()) != FusionSettings())
+      throw Error("made with other fusion settings (--gnss-factor-scale, --gnss-walk)",
+                  {.file = json_path.string()});
     r->poses = j.at("poses").get<size_t>();
     r->lost = j.at("lost_intervals").get<size_t>();
     r->factors = j.at("factors").get<size_t>();
@@ -220,7 +232,8 @@ void SaveRun(const fs::path& stem, const RunResult& r) {
                             {"rejected", r.rejected},
                             {"enu_aligned", r.aligned},
                             {"backend_median_ms", r.backend_median_ms},
-                            {"backend_keyframe_median_ms", r.backend_keyframe_median_ms}};
+                            {"backend_keyframe_median_ms", r.backend_keyframe_median_ms},
+                            {"gnss_settings", FusionSettings()}};
   io::WriteFileAtomically(stem.string() + ".json", j.dump(2) + "\n");
 }
 
