@@ -26,6 +26,9 @@ TEST(LoopClosure, ChecksOptions) {
   o.loop_sigma_m = 0;
   EXPECT_NE(o.Check().find("sigmas"), std::string::npos);
   o = {};
+  o.loop_consistency_m = 0;
+  EXPECT_NE(o.Check().find("loop_consistency_m"), std::string::npos);
+  o = {};
   o.max_view_angle_deg = 200;
   EXPECT_THROW(LoopCloser(camera::StereoRig{}, Rigid3d::Identity(), o), Error);
 }
