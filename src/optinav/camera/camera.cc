@@ -1,6 +1,7 @@
 #include "optinav/camera/camera.h"
 
 #include <cmath>
+#include <limits>
 
 #include <Eigen/SVD>
 
@@ -160,6 +161,18 @@ Eigen::Vector3d PinholeCamera::Unproject(const Eigen::Vector2d& pixel) const {
 bool PinholeCamera::InImage(const Eigen::Vector2d& pixel, double border) const {
   return pixel.x() >= border - 0.5 && pixel.y() >= border - 0.5 &&
          pixel.x() <= width - 0.5 - border && pixel.y() <= height - 0.5 - border;
+}
+
+Eigen::Matrix3d StereoRig::Essential() const {
+  return Hat(right_from_left.translation) * right_from_left.rotation.toRotationMatrix();
+}
+
+double EpipolarDistance(const Eigen::Matrix3d& essential, const Eigen::Vector2d& left_normalized,
+                        const Eigen::Vector2d& right_normalized) {
+  const Eigen::Vector3d line = essential * left_normalized.homogeneous();
+  const double scale = line.head<2>().norm();
+  if (!(scale > 0)) return std::numeric_limits<double>::infinity();
+  return std::abs(right_normalized.homogeneous().dot(line)) / scale;
 }
 
 std::optional<Eigen::Vector3d> TriangulateTwoView(const Rigid3d& cam1_from_world,

@@ -64,7 +64,14 @@ struct StereoRig {
   Rigid3d right_from_left;
 
   double Baseline() const { return right_from_left.translation.norm(); }
+  // Essential matrix E = [t]x R of right_from_left: x_r^T E x_l = 0 for normalized points.
+  Eigen::Matrix3d Essential() const;
 };
+
+// Distance of the right point to the epipolar line of the left one, in normalized units
+// (x pixels: the focal length); infinity when the line is undefined.
+double EpipolarDistance(const Eigen::Matrix3d& essential, const Eigen::Vector2d& left_normalized,
+                        const Eigen::Vector2d& right_normalized);
 
 // Linear (DLT) triangulation of one point seen in two views with known poses
 // (cam_from_world for each), from normalized undistorted coordinates. Returns the point in the

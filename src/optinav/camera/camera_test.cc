@@ -104,6 +104,14 @@ TEST(Camera, StereoTriangulationRecoversPoints) {
                            rig.right.PixelToNormalized(*pr));
     ASSERT_TRUE(x.has_value());
     EXPECT_LT((*x - p).norm(), 1e-6);
+    // A true match lies on its epipolar line; moved 2 px (in normalized units) across the
+    // nearly horizontal line it is 2 px off.
+    const Eigen::Vector2d nl = rig.left.PixelToNormalized(*pl);
+    const Eigen::Vector2d nr = rig.right.PixelToNormalized(*pr);
+    EXPECT_LT(EpipolarDistance(rig.Essential(), nl, nr), 1e-9);
+    const double off =
+        EpipolarDistance(rig.Essential(), nl, nr + Eigen::Vector2d(0, 2 / rig.right.fx));
+    EXPECT_NEAR(off * rig.right.fx, 2.0, 0.05);
   }
   // Identical rays (no baseline) cannot be triangulated.
   EXPECT_FALSE(TriangulateTwoView(left_from_world, left_from_world, {0.1, 0.1}, {0.1, 0.1}));

@@ -49,8 +49,7 @@ StereoFrontend::StereoFrontend(const camera::StereoRig& rig, const FrontendOptio
     : rig_(rig), options_(options) {
   const std::string problem = options_.Check();
   OPTINAV_CHECK_MSG(problem.empty(), problem);
-  essential_ =
-      Hat(rig_.right_from_left.translation) * rig_.right_from_left.rotation.toRotationMatrix();
+  essential_ = rig_.Essential();
 }
 
 void StereoFrontend::Reset() {
@@ -149,11 +148,7 @@ void StereoFrontend::MatchStereo(const std::vector<cv::Mat>& left_pyramid,
     if (!rig_.right.InImage(ToEigen(right_pts[i]), options_.border_px)) continue;
     const Eigen::Vector2d nl = rig_.left.PixelToNormalized(ToEigen(left_pts[i]));
     const Eigen::Vector2d nr = rig_.right.PixelToNormalized(ToEigen(right_pts[i]));
-    const Eigen::Vector3d xl(nl.x(), nl.y(), 1.0), xr(nr.x(), nr.y(), 1.0);
-    // Distance of the right point to the epipolar line of the left one, in pixels.
-    const Eigen::Vector3d line = essential_ * xl;
-    const double dist = std::abs(xr.dot(line)) / line.head<2>().norm() * focal;
-    if (dist > options_.epipolar_px) continue;
+    if (camera::EpipolarDistance(essential_, nl, nr) * focal > options_.epipolar_px) continue;
     // In front of both cameras: the triangulated depth along the left ray must be positive.
     const auto point =
         camera::TriangulateTwoView(Rigid3d::Identity(), rig_.right_from_left, nl, nr);

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 
 #include <ceres/ceres.h>
 #include <opencv2/calib3d.hpp>
@@ -77,11 +76,7 @@ LoopCloser::LoopCloser(const camera::StereoRig& rig, const Rigid3d& body_from_ca
     : rig_(rig), body_from_cam0_(body_from_cam0), options_(options) {
   if (const std::string e = options.Check(); !e.empty()) throw Error(e, {.field = "loop_closure"});
   orb_ = cv::ORB::create(options.orb_features);
-  // Essential matrix of right_from_left: x_r^T E x_l = 0.
-  const Eigen::Vector3d& t = rig.right_from_left.translation;
-  Eigen::Matrix3d tx;
-  tx << 0, -t.z(), t.y(), t.z(), 0, -t.x(), -t.y(), t.x(), 0;
-  essential_ = tx * rig.right_from_left.rotation.toRotationMatrix();
+  essential_ = rig.Essential();
 }
 
 LoopCloser::Keyframe LoopCloser::Describe(const StateEstimate& state, const cv::Mat& left,
@@ -118,9 +113,7 @@ LoopCloser::Keyframe LoopCloser::Describe(const StateEstimate& state, const cv::
     const Eigen::Vector2d pix(pr[i].x, pr[i].y);
     if (!rig_.right.InImage(pix)) continue;
     const Eigen::Vector2d nr = rig_.right.PixelToNormalized(pix);
-    const Eigen::Vector3d line = essential_ * kf.normalized[i].homogeneous();
-    const double scale = std::hypot(line.x(), line.y());
-    if (!(scale > 0) || std::abs(line.dot(nr.homogeneous())) / scale > max_line) continue;
+    if (camera::EpipolarDistance(essential_, kf.normalized[i], nr) > max_line) continue;
     const auto p =
         camera::TriangulateTwoView(Rigid3d::Identity(), rig_.right_from_left, kf.normalized[i], nr);
     if (!p || p->z() < 0.1 || p->z() > max_depth) continue;
