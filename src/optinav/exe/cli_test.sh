@@ -270,6 +270,8 @@ expect_ok "vio gnss llh file" "$BIN" vio --dataset "$MICRO" --gnss --gnss-file "
 grep -q "never initialised" "$WORK/err.txt" || fail "vio gnss: missing alignment not reported"
 [[ -f "$WORK/g.gnss_rejected.csv" ]] || fail "vio gnss: no rejected-samples file"
 grep -q '"gnss"' "$WORK/g.json" || fail "vio gnss: stats lack the gnss block"
+grep -q '"smoothed_tracks": 0' "$WORK/g.json" || fail "vio gnss: stats lack the smoother's figures"
+[[ ! -f "$WORK/g.live.tum" ]] || fail "vio gnss: a live ENU trajectory without an alignment"
 expect_error "vio gnss missing file" "GNSS file not found" "$BIN" vio --dataset "$MICRO" --gnss --out "$WORK/x.tum"
 expect_error "vio gnss in stereo mode" "stereo-imu" "$BIN" vio --dataset "$MICRO" --gnss \
   --gnss-file "$WORK/gnss_llh.csv" --mode stereo --out "$WORK/x.tum"
@@ -286,6 +288,8 @@ expect_error "vio gnss bad walk" "--gnss-walk" "$BIN" vio --dataset "$MICRO" --g
   --gnss-file "$WORK/gnss_llh.csv" --gnss-walk 0.1 --out "$WORK/x.tum"
 expect_error "vio gnss bad factor scale" "factor_sigma_scale must be > 0" "$BIN" vio \
   --dataset "$MICRO" --gnss --gnss-file "$WORK/gnss_llh.csv" --gnss-factor-scale 0 --out "$WORK/x.tum"
+expect_error "vio gnss bad smoother walk" "smooth_walk_scale must be > 0" "$BIN" vio \
+  --dataset "$MICRO" --gnss --gnss-file "$WORK/gnss_llh.csv" --gnss-smooth-walk-scale 0 --out "$WORK/x.tum"
 expect_error "bench gnss bad factor scale" "factor_sigma_scale must be > 0" \
   "$BIN" bench gnss --out "$WORK/bg" --gnss-factor-scale -1
 printf '#timestamp [ns],x,y,z\n' > "$WORK/g_empty.csv"

@@ -71,6 +71,9 @@ struct RunResult {
   bool ok = false;
   std::string error;
   double ate_se3 = NAN, global_rmse = NAN;
+  // The live (causal) estimate's, when the output is smoothed (GnssFusionOptions::smooth).
+  double ate_se3_live = NAN, global_rmse_live = NAN;
+  double outage_growth_live = NAN, err_10s_after_live = NAN;
   double global_rmse_10s = NAN;  // from 10 s on: after the VIO start-up and the ENU alignment
   size_t poses = 0, lost = 0, factors = 0, rejected = 0;
   double backend_median_ms = NAN, backend_keyframe_median_ms = NAN;
@@ -79,7 +82,8 @@ struct RunResult {
          err_10s_after = NAN, recovery_s = NAN;
   std::vector<std::pair<double, double>> error_over_time;  // (s, m), unaligned
   Trajectory estimate;                                     // as output (world or ENU)
-  bool aligned = false;                                    // ENU alignment made (GNSS runs)
+  Trajectory live;       // GNSS runs with an alignment: the live estimate in ENU
+  bool aligned = false;  // ENU alignment made (GNSS runs)
 };
 
 // The room flight: a loop of a 12 x 8 m room at 1.5 - 3 m, flown four times.
@@ -186,7 +190,10 @@ nlohmann::json FusionSettings() {
   const vio::GnssFusionOptions& o = FusionDefaults();
   return {{"factor_sigma_scale", o.factor_sigma_scale},
           {"alignment_walk_m_per_sqrt_m", o.alignment_walk_m_per_sqrt_m},
-          {"alignment_walk_rad_per_sqrt_m", o.alignment_walk_rad_per_sqrt_m}};
+          {"alignment_walk_rad_per_sqrt_m", o.alignment_walk_rad_per_sqrt_m},
+          {"smooth", o.smooth},
+          {"smooth_walk_m_per_sqrt_s", o.smooth_walk_m_per_sqrt_s},
+          {"smooth_walk_rad_per_sqrt_s", o.smooth_walk_rad_per_sqrt_s}};
 }
 
 double JsonNumber(const nlohmann::json& j, const char* key) {
@@ -213,6 +220,8 @@ bool LoadRun(const fs::path& stem, RunResult* r) {
     r->backend_median_ms = JsonNumber(j, "backend_median_ms");
     r->backend_keyframe_median_ms = JsonNumber(j, "backend_keyframe_median_ms");
     r->estimate = io::ReadTrajectory(tum_path.string());
+    const fs::path live_path = stem.string() + ".live.tum";
+    if (r->aligned && r->condition != "no GNSS") r->live = io::ReadTrajectory(live_path.string());
     return !r->estimate.empty();
   } catch (const std::exception& e) {
     spdlog::warn("bench gnss: not reusing {}: {}", json_path.string(), e.what());
@@ -222,6 +231,8 @@ bool LoadRun(const fs::path& stem, RunResult* r) {
 
 void SaveRun(const fs::path& stem, const RunResult& r) {
   io::WriteTrajectory(stem.string() + ".tum", r.estimate, io::TrajectoryFormat::kTum);
+  if (!r.live.empty())
+    io::WriteTrajectory(stem.string() + ".live.tum", r.live, io::TrajectoryFormat::kTum);
   const nlohmann::json j = {{"sequence", r.sequence},
                             {"condition", r.condition},
                             {"norm", r.norm},
@@ -268,7 +279,10 @@ RunResult RunOne(const Sequence& seq, const Condition* condition, const std::str
       if (v.timing.count("backend")) r.backend_median_ms = v.timing.at("backend").median_s * 1e3;
       if (v.timing.count("backend_keyframe"))
         r.backend_keyframe_median_ms = v.timing.at("backend_keyframe").median_s * 1e3;
-      Trajectory est = condition ? vio::EstimatesToEnuTrajectory(v.estimates) : Trajectory();
+      Trajectory est =
+          condition ? vio::EstimatesToEnuTrajectory(v.estimates, v.gnss_smoothing.enu_from_world)
+                    : Trajectory();
+      if (condition) r.live = vio::EstimatesToEnuTrajectory(v.estimates);
       // Without an ENU alignment (too little motion for the GNSS noise to fix the yaw) the
       // output stays in the VIO world frame, as `optinav vio --gnss` writes it: its ATE counts,
       // it has no global error.
@@ -278,18 +292,34 @@ RunResult RunOne(const Sequence& seq, const Condition* condition, const std::str
       r.estimate = est;
       SaveRun(stem, r);
     }
-    const Trajectory& est = r.estimate;
-    eval::SyncedPair synced = eval::Synchronize(seq.truth, est);
-    {
+    const auto ate_se3 = [&](const eval::SyncedPair& synced) {
       Trajectory aligned = synced.est;
       eval::AlignmentOptions a;
       a.mode = eval::AlignMode::kSe3;
       eval::AlignTrajectory(synced.ref, &aligned, a);
-      r.ate_se3 =
-          eval::ComputeStatistics(
-              eval::ComputeApe(synced.ref, aligned, eval::PoseRelation::kTranslation).errors)
-              .rmse;
+      return eval::ComputeStatistics(
+                 eval::ComputeApe(synced.ref, aligned, eval::PoseRelation::kTranslation).errors)
+          .rmse;
+    };
+    if (!r.live.empty()) {
+      const eval::SyncedPair live = eval::Synchronize(seq.truth, r.live);
+      r.ate_se3_live = ate_se3(live);
+      const eval::ErrorSeries e =
+          eval::ComputeApe(live.ref, live.est, eval::PoseRelation::kTranslation);
+      r.global_rmse_live = eval::ComputeStatistics(e.errors).rmse;
+      if (condition && condition->outage_s > 0) {
+        std::vector<std::pair<double, double>> series;
+        for (size_t i = 0; i < e.errors.size(); ++i)
+          series.emplace_back((live.ref.t_ns[e.indices[i]] - seq.truth.t_ns.front()) * 1e-9,
+                              e.errors[i]);
+        const double ts = seq.outage_start_s, te = ts + condition->outage_s;
+        r.outage_growth_live = ErrorAtTime(series, te) - ErrorAtTime(series, ts);
+        r.err_10s_after_live = ErrorAtTime(series, te + 10.0);
+      }
     }
+    const Trajectory& est = r.estimate;
+    eval::SyncedPair synced = eval::Synchronize(seq.truth, est);
+    r.ate_se3 = ate_se3(synced);
     r.ok = true;
     if (condition && !r.aligned) return r;  // no global error in the world frame
     Trajectory global = synced.est;
@@ -572,12 +602,16 @@ int RunGnssBench(int argc, char** argv) {
     std::string table3 =
         "Global RMSE in ENU without alignment from 10 s on (m): after the VIO's in-motion start-up "
         "and the ENU alignment\n";
+    std::string table4 =
+        "The live (causal) estimate, each frame through the alignment known right after it: RMSE "
+        "ATE after SE(3) / global RMSE (m), mean over seeds\n";
     table1 += header + " never worse |\n";
     table2 += header + "\n";
     table3 += header + "\n";
+    table4 += header + "\n";
     bool all_never_worse = true;
     auto row = [&](const std::string& cond, const std::string& norm) {
-      std::string r1 = fmt::format("| {:<22} | {:<5} |", cond, norm), r2 = r1, r3 = r1;
+      std::string r1 = fmt::format("| {:<22} | {:<5} |", cond, norm), r2 = r1, r3 = r1, r4 = r1;
       bool never_worse = true;
       for (const Sequence& s : seqs) {
         const Cell a = Summarise(runs, s.name, cond, norm, &RunResult::ate_se3);
@@ -593,6 +627,10 @@ int RunGnssBench(int argc, char** argv) {
         r3 += fmt::format(" {:>20} |", g10.n ? fmt::format("{:.3f} [{:.3f}]", g10.mean, g10.max)
                                        : a.n ? "not aligned"
                                              : "failed");
+        const Cell la = Summarise(runs, s.name, cond, norm, &RunResult::ate_se3_live);
+        const Cell lg = Summarise(runs, s.name, cond, norm, &RunResult::global_rmse_live);
+        r4 +=
+            fmt::format(" {:>20} |", la.n ? fmt::format("{:.3f} / {:.3f}", la.mean, lg.mean) : "-");
         const Cell base = Summarise(runs, s.name, "no GNSS", "-", &RunResult::ate_se3);
         if (cond != "no GNSS") {
           if (a.failed || !(a.max <= 1.05 * base.mean)) never_worse = false;
@@ -606,6 +644,7 @@ int RunGnssBench(int argc, char** argv) {
                 "\n";
       table2 += r2 + "\n";
       table3 += r3 + "\n";
+      if (cond != "no GNSS") table4 += r4 + "\n";
     };
     row("no GNSS", "-");
     for (const Condition* c : selected)
@@ -615,15 +654,18 @@ int RunGnssBench(int argc, char** argv) {
     for (const RunResult& r : runs) {
       if (!r.ok || r.condition != "3 m + 60 s outage") continue;
       outage += fmt::format(
-          "| {:<8} | {:<5} | {:>4} | {:>10.2f} | {:>10.2f} | {:>10.2f} | {:>14.2f} | {:>12.2f} |\n",
+          "| {:<8} | {:<5} | {:>4} | {:>10.2f} | {:>10.2f} | {:>10.2f} | {:>14.2f} | {:>12.2f} | "
+          "{:>11.2f} | {:>11.2f} |\n",
           r.sequence, r.norm, r.seed, r.outage_start_err, r.outage_end_err,
-          r.outage_end_err - r.outage_start_err, r.vio_drift_over_outage, r.err_10s_after);
+          r.outage_end_err - r.outage_start_err, r.vio_drift_over_outage, r.err_10s_after,
+          r.outage_growth_live, r.err_10s_after_live);
     }
     const std::string outage_table =
         "60 s outage: error at its start and end (m), growth, VIO alone's drift over the same 60 s "
-        "(m), error 10 s after GNSS returns (m)\n| sequence | norm  | seed | start      | end      "
-        "  | "
-        "growth     | VIO-alone drift | +10 s        |\n" +
+        "(m), error 10 s after GNSS returns (m); the same two for the live estimate (which does "
+        "not "
+        "see the samples after the outage)\n| sequence | norm  | seed | start      | end        | "
+        "growth     | VIO-alone drift | +10 s        | live growth | live +10 s  |\n" +
         outage;
     std::string speed;
     for (const Sequence& s : seqs) {
@@ -640,7 +682,7 @@ int RunGnssBench(int argc, char** argv) {
           s.name, b0.mean, b1.mean, b1.mean / b0.mean, k0.mean, k1.mean, k1.mean / k0.mean);
     }
     const std::string report =
-        table1 + "\n" + table2 + "\n" + table3 + "\n" + outage_table + "\n" + speed;
+        table1 + "\n" + table2 + "\n" + table3 + "\n" + table4 + "\n" + outage_table + "\n" + speed;
     std::printf("\n%s", report.c_str());
     std::printf("never worse than VIO alone (every row, every seed, 5 %% margin): %s\n",
                 all_never_worse ? "yes" : "NO");
@@ -650,7 +692,7 @@ int RunGnssBench(int argc, char** argv) {
         "sequence,condition,norm,seed,ok,aligned,ate_se3_m,global_rmse_m,poses,lost,factors,"
         "rejected,global_rmse_10s_m,backend_median_ms,backend_keyframe_median_ms,outage_start_err_"
         "m,outage_end_err_m,vio_drift_over_outage_m,"
-        "err_10s_after_m,error\n";
+        "err_10s_after_m,live_ate_se3_m,live_global_rmse_m,error\n";
     nlohmann::json j;
     j["sequences"] = nlohmann::json::array();
     for (const Sequence& s : seqs)
@@ -659,11 +701,11 @@ int RunGnssBench(int argc, char** argv) {
     for (const RunResult& r : runs) {
       csv += fmt::format(
           "{},{},{},{},{},{},{:.4f},{:.4f},{},{},{},{},{:.4f},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{:"
-          ".3f},\"{}\"\n",
+          ".3f},{:.4f},{:.4f},\"{}\"\n",
           r.sequence, r.condition, r.norm, r.seed, r.ok ? 1 : 0, r.aligned ? 1 : 0, r.ate_se3,
           r.global_rmse, r.poses, r.lost, r.factors, r.rejected, r.global_rmse_10s,
           r.backend_median_ms, r.backend_keyframe_median_ms, r.outage_start_err, r.outage_end_err,
-          r.vio_drift_over_outage, r.err_10s_after, r.error);
+          r.vio_drift_over_outage, r.err_10s_after, r.ate_se3_live, r.global_rmse_live, r.error);
       j["runs"].push_back({{"sequence", r.sequence},
                            {"condition", r.condition},
                            {"norm", r.norm},
@@ -673,6 +715,10 @@ int RunGnssBench(int argc, char** argv) {
                            {"ate_se3_m", r.ate_se3},
                            {"global_rmse_m", r.global_rmse},
                            {"global_rmse_from_10s_m", r.global_rmse_10s},
+                           {"live_ate_se3_m", r.ate_se3_live},
+                           {"live_global_rmse_m", r.global_rmse_live},
+                           {"live_outage_growth_m", r.outage_growth_live},
+                           {"live_err_10s_after_m", r.err_10s_after_live},
                            {"lost_intervals", r.lost},
                            {"factors", r.factors},
                            {"rejected", r.rejected},

@@ -61,6 +61,9 @@ nlohmann::json StatsJson(const vio::VioRunResult& r, const std::string& mode) {
                {"rejected", g.rejected},
                {"alignments", g.alignments},
                {"drift_inflations", g.drift_inflations},
+               {"smoothed_tracks", r.gnss_smoothing.tracks_smoothed},
+               {"smoothed_samples", r.gnss_smoothing.samples},
+               {"smoother_solve_s", r.gnss_smoothing.solve_s},
                {"aligned_at_s", g.aligned_at_ns ? nlohmann::json(*g.aligned_at_ns * 1e-9)
                                                 : nlohmann::json(nullptr)}};
   return j;
@@ -114,9 +117,10 @@ int RunVio(int argc, char** argv) {
   bool gnss = false;
   std::string gnss_file, gnss_format = "auto", gnss_norm = "huber", gnss_time = "exact",
                          gnss_origin, gnss_lever, gnss_walk, gnss_drift, wgs84_out, geojson_out,
-                         rejected_out;
+                         rejected_out, gnss_live_out;
+  bool gnss_no_smooth = false;
   double gnss_norm_param = -1, gnss_sigma = -1, gnss_gate = -1, gnss_init_distance = -1,
-         gnss_factor_scale = -1;
+         gnss_factor_scale = -1, gnss_smooth_walk_scale = -1;
   double gnss_init_yaw_sigma = -1;
   app.add_option("--dataset", dataset, "sequence folder (holding mav0/)")->required();
   app.add_option("--format", format, "dataset format: euroc|airsim (airsim: stereo-only)")
@@ -178,6 +182,14 @@ int RunVio(int argc, char** argv) {
   app.add_option("--gnss-drift-test", gnss_drift,
                  "drift detection on the mean innovation: SAMPLES,CHI2 (CHI2 0: off; default "
                  "from GnssFusionOptions)");
+  app.add_flag("--gnss-no-smooth", gnss_no_smooth,
+               "output the live estimate (each frame through the ENU alignment known right after "
+               "it) instead of the one smoothed over the whole run");
+  app.add_option("--gnss-smooth-walk-scale", gnss_smooth_walk_scale,
+                 "the smoother's random walk = the alignment walk (--gnss-walk) x this (default 1; "
+                 "raise it for a VIO that drifts more)");
+  app.add_option("--gnss-live-out", gnss_live_out,
+                 "the live estimate in ENU, TUM (default with smoothing: TRAJ.live.tum)");
   app.add_option("--wgs84-out", wgs84_out,
                  "fused trajectory in WGS84 csv (default TRAJ.wgs84.csv)");
   app.add_option("--geojson-out", geojson_out,
@@ -269,6 +281,8 @@ int RunVio(int argc, char** argv) {
       if (gnss_gate != -1) g.gate_chi2 = gnss_gate;
       if (gnss_init_distance != -1) g.init_min_distance_m = gnss_init_distance;
       if (gnss_factor_scale != -1) g.factor_sigma_scale = gnss_factor_scale;
+      g.smooth = !gnss_no_smooth;
+      if (gnss_smooth_walk_scale != -1) g.smooth_walk_scale = gnss_smooth_walk_scale;
       if (gnss_init_yaw_sigma != -1) {
         if (!(gnss_init_yaw_sigma > 0))
           throw Error("must be > 0 (degrees)", {.field = "--gnss-init-yaw-sigma"});
@@ -304,7 +318,7 @@ int RunVio(int argc, char** argv) {
     Trajectory body = vio::EstimatesToTrajectory(r.estimates);
     std::string frame = "world";
     if (gnss) {
-      Trajectory enu = vio::EstimatesToEnuTrajectory(r.estimates);
+      Trajectory enu = vio::EstimatesToEnuTrajectory(r.estimates, r.gnss_smoothing.enu_from_world);
       if (enu.empty()) {
         spdlog::warn(
             "gnss: the ENU alignment was never initialised (too little horizontal motion or no "
@@ -325,7 +339,8 @@ int RunVio(int argc, char** argv) {
                   odometry_out.empty() ? " (--odometry-out writes it before)" : "");
     if (!camera_out.empty()) {
       const Trajectory c = frame == "enu"
-                               ? vio::EstimatesToEnuTrajectory(r.estimates, r.body_from_cam0)
+                               ? vio::EstimatesToEnuTrajectory(
+                                     r.estimates, r.gnss_smoothing.enu_from_world, r.body_from_cam0)
                                : vio::EstimatesToTrajectory(r.estimates, r.body_from_cam0);
       io::WriteTrajectory(camera_out, c, io::TrajectoryFormat::kTum);
     }
@@ -333,6 +348,11 @@ int RunVio(int argc, char** argv) {
       const std::string stem = StemOf(out);
       if (rejected_out.empty()) rejected_out = stem + ".gnss_rejected.csv";
       io::WriteFileAtomically(rejected_out, RejectedCsv(r.gnss_rejected));
+      if (frame == "enu" && gnss_live_out.empty() && !gnss_no_smooth)
+        gnss_live_out = stem + ".live.tum";
+      if (frame == "enu" && !gnss_live_out.empty())
+        io::WriteTrajectory(gnss_live_out, vio::EstimatesToEnuTrajectory(r.estimates),
+                            io::TrajectoryFormat::kTum);
       if (frame == "enu" && gnss_input->origin_lat_lon_height) {
         if (wgs84_out.empty()) wgs84_out = stem + ".wgs84.csv";
         if (geojson_out.empty()) geojson_out = stem + ".geojson";
@@ -344,6 +364,10 @@ int RunVio(int argc, char** argv) {
       std::printf("gnss: %zu samples, %zu factors, %zu rejected (-> %s), %s\n", g.received,
                   g.factors, g.rejected, rejected_out.c_str(),
                   frame == "enu" ? ("trajectory in ENU" +
+                                    std::string(r.gnss_smoothing.tracks_smoothed
+                                                    ? " (smoothed over the run; live estimate -> " +
+                                                          gnss_live_out + ")"
+                                                    : "") +
                                     (wgs84_out.empty() ? std::string() : ", WGS84 -> " + wgs84_out))
                                        .c_str()
                                  : "trajectory in the VIO world frame (no alignment)");

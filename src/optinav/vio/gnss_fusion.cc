@@ -32,6 +32,13 @@ std::string GnssNormName(GnssNorm norm) {
   return "?";
 }
 
+std::unique_ptr<ceres::LossFunction> MakeGnssLoss(GnssNorm norm, double parameter) {
+  const double k = parameter > 0 ? parameter : DefaultGnssNormParameter(norm);
+  if (norm == GnssNorm::kHuber) return std::make_unique<ceres::HuberLoss>(k);
+  if (norm == GnssNorm::kTukey) return std::make_unique<ceres::TukeyLoss>(k);
+  return nullptr;
+}
+
 double DefaultGnssNormParameter(GnssNorm norm) {
   // Whitened 3-D residual norms of inliers are ~1.6 (chi with 3 DoF): Huber stays quadratic for
   // nearly all of them; Tukey ignores anything beyond 5 sigma.
@@ -71,6 +78,10 @@ std::string GnssFusionOptions::Check() const {
   if (drift_window_samples < 1) return "drift_window_samples must be >= 1";
   if (!std::isfinite(drift_test_chi2)) return "drift_test_chi2 must be finite";
   if (!(max_interpolation_gap_s > 0)) return "max_interpolation_gap_s must be > 0";
+  if (!(smooth_walk_scale > 0) || !std::isfinite(smooth_walk_scale))
+    return "smooth_walk_scale must be > 0";
+  if (!(smooth_walk_m_per_sqrt_s >= 0) || !(smooth_walk_rad_per_sqrt_s >= 0))
+    return "smoother walk parameters must be >= 0";
   if (!(alignment_walk_m_per_sqrt_m >= 0) || !(alignment_walk_rad_per_sqrt_m >= 0))
     return "alignment random walk must be >= 0";
   if (!(relock_sigma_m > 0) || !(relock_yaw_sigma_rad > 0)) return "relock sigmas must be > 0";
@@ -182,10 +193,7 @@ struct GnssFusion::Evidence {
 GnssFusion::GnssFusion(const GnssFusionOptions& options) : options_(options) {
   const std::string problem = options_.Check();
   OPTINAV_CHECK_MSG(problem.empty(), problem);
-  const double k = options_.norm_parameter > 0 ? options_.norm_parameter
-                                               : DefaultGnssNormParameter(options_.norm);
-  if (options_.norm == GnssNorm::kHuber) loss_ = std::make_unique<ceres::HuberLoss>(k);
-  if (options_.norm == GnssNorm::kTukey) loss_ = std::make_unique<ceres::TukeyLoss>(k);
+  loss_ = MakeGnssLoss(options_.norm, options_.norm_parameter);
 }
 
 GnssFusion::~GnssFusion() = default;
@@ -350,9 +358,10 @@ void GnssFusion::Use(const GnssSample& s, SlidingWindowBackend* backend) {
       // The window's prior on the alignment is as overconfident as the model: loosen it too (the
       // next factors start loose as well: their sigma includes the widened floor, which halves
       // per accepted sample).
-      backend->InflateAlignment(Eigen::Vector4d(std::sqrt(state_var_m2_), std::sqrt(state_var_m2_),
-                                                std::sqrt(state_var_m2_),
-                                                options_.reopen_yaw_sigma_rad));
+      const Eigen::Vector4d sigma(std::sqrt(state_var_m2_), std::sqrt(state_var_m2_),
+                                  std::sqrt(state_var_m2_), options_.reopen_yaw_sigma_rad);
+      backend->InflateAlignment(sigma);
+      inflations_.push_back({s.t_ns, sigma});
       spdlog::info("gnss: {:.1f} s of rejected samples at {:.3f} s, gate widened to {:.1f} m",
                    options_.reopen_after_s, s.t_ns * 1e-9, std::sqrt(state_var_m2_));
     }
@@ -370,7 +379,9 @@ void GnssFusion::Use(const GnssSample& s, SlidingWindowBackend* backend) {
     // antenna's distance from the world origin (the alignment's centre of rotation).
     const double offset = innovation_mean_.norm();
     const double reach = std::max(10.0, (*pose).translation.head<2>().norm());
-    backend->InflateAlignment(Eigen::Vector4d(offset, offset, offset, offset / reach));
+    const Eigen::Vector4d sigma(offset, offset, offset, offset / reach);
+    backend->InflateAlignment(sigma);
+    inflations_.push_back({s.t_ns, sigma});
     ++stats_.drift_inflations;
     spdlog::debug(
         "gnss: mean innovation {:.2f} m at {:.3f} s: VIO drift beyond the model, "
@@ -396,6 +407,7 @@ void GnssFusion::AddFactor(const GnssSample& sample, double state_var_m2,
   s.sigma_m = options_.factor_sigma_scale * std::sqrt(s.sigma_m * s.sigma_m + state_var_m2);
   backend->AddTimedFactor(std::make_unique<GnssFactor>(s, options_.lever_arm_in_body, loss_.get()));
   ++stats_.factors;
+  used_.push_back(sample);
 }
 
 void GnssFusion::TryInitialize(SlidingWindowBackend* backend) {
@@ -499,6 +511,7 @@ void GnssFusion::TryInitialize(SlidingWindowBackend* backend) {
   for (int i : best) {
     const Evidence& e = evidence_[i];
     if (e.sample.t_ns >= window_start) continue;
+    used_.push_back(e.sample);
     const Eigen::Matrix<double, 3, 4> J = AlignmentJacobian(a, e.antenna_world);
     prior_info += J.transpose() * J / (e.sample.sigma_m * e.sample.sigma_m);
   }

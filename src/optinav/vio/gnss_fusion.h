@@ -39,6 +39,8 @@ std::optional<GnssNorm> ParseGnssNorm(const std::string& name);  // l2 | huber |
 std::string GnssNormName(GnssNorm norm);
 // The default parameter of a norm, in units of the whitened residual (sigma).
 double DefaultGnssNormParameter(GnssNorm norm);
+// The norm as a Ceres loss on the whitened residual (nullptr for L2); parameter <= 0: the default.
+std::unique_ptr<ceres::LossFunction> MakeGnssLoss(GnssNorm norm, double parameter);
 
 enum class GnssTimeMode { kExact, kFrameInterpolated };
 std::optional<GnssTimeMode> ParseGnssTimeMode(const std::string& name);  // exact | frame
@@ -107,7 +109,24 @@ struct GnssFusionOptions {
   double relock_sigma_m = 10.0;  // after a VIO re-initialisation: translation prior, gate sigma
   double relock_yaw_sigma_rad = 0.1;
 
+  // The output is smoothed over the whole run (SmoothGnssAlignment): the alignment at every frame
+  // re-estimated from all the samples the fusion accepted, before and after it. false: the
+  // alignment known right after each frame (the live estimate) only.
+  bool smooth = true;
+  // The smoother's random walk: the alignment's (alignment_walk_*) times this, plus a small one
+  // per second (for hovering). Raise it for a VIO that drifts more than the alignment walk.
+  double smooth_walk_scale = 1.0;
+  double smooth_walk_m_per_sqrt_s = 0.002;
+  double smooth_walk_rad_per_sqrt_s = 0.0001;
+
   std::string Check() const;  // empty when valid
+};
+
+// What the fusion loosened the alignment by at a time (drift test, widened gate): the smoother
+// allows the same extra drift there.
+struct AlignmentInflation {
+  int64_t t_ns = 0;
+  Eigen::Vector4d sigma = Eigen::Vector4d::Zero();  // [tx, ty, tz, yaw]
 };
 
 struct RejectedGnss {
@@ -144,6 +163,10 @@ class GnssFusion {
   // The current estimate of enu_from_world, once initialised.
   std::optional<WorldAlignment> alignment() const { return alignment_; }
   const std::vector<RejectedGnss>& rejected() const { return rejected_; }
+  // The samples that entered the estimate (factors and the alignment's initial evidence), in
+  // time order, with the sigma the fusion gave them (the model sigma included).
+  const std::vector<GnssSample>& used() const { return used_; }
+  const std::vector<AlignmentInflation>& inflations() const { return inflations_; }
   const GnssFusionStats& stats() const { return stats_; }
   const GnssFusionOptions& options() const { return options_; }
 
@@ -175,6 +198,8 @@ class GnssFusion {
   std::optional<GnssSample> last_ready_;  // frame-interpolated mode
   std::deque<int64_t> frames_waiting_;    // frame-interpolated mode
   std::vector<RejectedGnss> rejected_;
+  std::vector<GnssSample> used_;
+  std::vector<AlignmentInflation> inflations_;
   GnssFusionStats stats_;
   int64_t next_debug_ns_ = 0;  // the next periodic debug line
 };

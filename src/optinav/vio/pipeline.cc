@@ -188,6 +188,11 @@ VioRunResult RunOnPairs(const camera::StereoRig& rig, const Rigid3d& body_from_c
   if (const GnssFusion* gnss = estimator.gnss()) {
     result.gnss_rejected = gnss->rejected();
     result.gnss_stats = gnss->stats();
+    result.gnss_smoothing = SmoothGnssAlignment(result.estimates, result.lost, gnss->used(),
+                                                gnss->inflations(), gnss->options());
+    if (result.gnss_smoothing.tracks_smoothed)
+      spdlog::info("gnss: output smoothed over {} sample(s) in {:.2f} s",
+                   result.gnss_smoothing.samples, result.gnss_smoothing.solve_s);
   }
   for (const std::string& stage : estimator.timing().Stages())
     result.timing[stage] = estimator.timing().Summary(stage);

@@ -27,6 +27,7 @@
 #include "optinav/geometry/trajectory.h"
 #include "optinav/util/timer.h"
 #include "optinav/vio/estimator.h"
+#include "optinav/vio/gnss_smoother.h"
 
 namespace optinav::vio {
 
@@ -60,6 +61,10 @@ struct VioRunResult {
   // With GNSS.
   std::vector<RejectedGnss> gnss_rejected;
   GnssFusionStats gnss_stats;
+  // enu_from_world per estimate, smoothed over the run (GnssFusionOptions::smooth; else the live
+  // alignments): EstimatesToEnuTrajectory(estimates, gnss_smoothing.enu_from_world) is the fused
+  // output, EstimatesToEnuTrajectory(estimates) the live one.
+  GnssSmoothing gnss_smoothing;
 };
 
 // Throws Error (naming file/line/field) on bad input: layout, calibration, unreadable images or
