@@ -81,6 +81,7 @@ struct RunResult {
   double outage_start_err = NAN, outage_end_err = NAN, vio_drift_over_outage = NAN,
          err_10s_after = NAN, recovery_s = NAN;
   std::vector<std::pair<double, double>> error_over_time;  // (s, m), unaligned
+  std::vector<std::pair<double, double>> live_error_over_time;
   Trajectory estimate;                                     // as output (world or ENU)
   Trajectory live;       // GNSS runs with an alignment: the live estimate in ENU
   bool aligned = false;  // ENU alignment made (GNSS runs)
@@ -307,11 +308,11 @@ RunResult RunOne(const Sequence& seq, const Condition* condition, const std::str
       const eval::ErrorSeries e =
           eval::ComputeApe(live.ref, live.est, eval::PoseRelation::kTranslation);
       r.global_rmse_live = eval::ComputeStatistics(e.errors).rmse;
+      std::vector<std::pair<double, double>>& series = r.live_error_over_time;
+      for (size_t i = 0; i < e.errors.size(); ++i)
+        series.emplace_back((live.ref.t_ns[e.indices[i]] - seq.truth.t_ns.front()) * 1e-9,
+                            e.errors[i]);
       if (condition && condition->outage_s > 0) {
-        std::vector<std::pair<double, double>> series;
-        for (size_t i = 0; i < e.errors.size(); ++i)
-          series.emplace_back((live.ref.t_ns[e.indices[i]] - seq.truth.t_ns.front()) * 1e-9,
-                              e.errors[i]);
         const double ts = seq.outage_start_s, te = ts + condition->outage_s;
         r.outage_growth_live = ErrorAtTime(series, te) - ErrorAtTime(series, ts);
         r.err_10s_after_live = ErrorAtTime(series, te + 10.0);
@@ -397,14 +398,18 @@ Cell Summarise(const std::vector<RunResult>& runs, const std::string& seq,
 // Error over time of the outdoor flight: no GNSS vs sigma 3 m vs the outage (first seed, Huber).
 void WritePlot(const std::string& path, const std::vector<RunResult>& runs, const std::string& seq,
                double outage_start_s) {
-  const std::vector<std::pair<std::string, std::string>> series = {
-      {"no GNSS", "#888888"},
-      {"sigma 3 m", "#1f77b4"},
-      {"3 m + 10 % outliers", "#2ca02c"},
-      {"3 m + 60 s outage", "#d62728"}};
+  struct Series {
+    std::string name, colour;
+    bool live;  // the run's live estimate instead of its output
+  };
+  const std::vector<Series> series = {{"no GNSS", "#888888", false},
+                                      {"sigma 3 m", "#9ecae1", true},
+                                      {"sigma 3 m", "#1f77b4", false},
+                                      {"3 m + 10 % outliers", "#2ca02c", false},
+                                      {"3 m + 60 s outage", "#d62728", false}};
   std::vector<const RunResult*> picked;
   double t_max = 1, e_max = 0.5;
-  for (const auto& [name, colour] : series) {
+  for (const auto& [name, colour, live] : series) {
     const RunResult* best = nullptr;
     for (const RunResult& r : runs)
       if (r.ok && r.sequence == seq && r.condition == name &&
@@ -412,7 +417,7 @@ void WritePlot(const std::string& path, const std::vector<RunResult>& runs, cons
         best = &r;
     picked.push_back(best);
     if (!best) continue;
-    for (const auto& [t, e] : best->error_over_time)
+    for (const auto& [t, e] : live ? best->live_error_over_time : best->error_over_time)
       t_max = std::max(t_max, t), e_max = std::max(e_max, e);
   }
   e_max = std::min(e_max, 20.0);
@@ -438,17 +443,22 @@ void WritePlot(const std::string& path, const std::vector<RunResult>& runs, cons
            "#fde0dd");
   svg.Text(X(outage_start_s + 30), top + 14, "60 s outage (red run)", 11, "middle");
   for (size_t k = 0; k < series.size(); ++k) {
-    if (!picked[k]) continue;
+    if (!picked[k] || (series[k].live && picked[k]->live_error_over_time.empty())) continue;
     std::string pts;
-    const auto& s = picked[k]->error_over_time;
+    const auto& s =
+        series[k].live ? picked[k]->live_error_over_time : picked[k]->error_over_time;
     const size_t step = std::max<size_t>(1, s.size() / 1500);
     for (size_t i = 0; i < s.size(); i += step)
       pts += fmt::format("{:.1f},{:.1f} ", X(s[i].first), Y(s[i].second));
-    svg.Polyline(pts, series[k].second, 1.5);
-    svg.Rect(W - 230, top + 10 + 18 * k, 14, 4, series[k].second);
-    svg.Text(W - 210, top + 16 + 18 * k,
-             series[k].first + (series[k].first == "no GNSS" ? " (first 5 s aligned)" : ", Huber") +
-                 fmt::format(": RMSE {:.2f} m", picked[k]->global_rmse),
+    svg.Polyline(pts, series[k].colour, 1.5);
+    svg.Rect(W - 260, top + 10 + 18 * k, 14, 4, series[k].colour);
+    svg.Text(W - 240, top + 16 + 18 * k,
+             series[k].name +
+                 (series[k].name == "no GNSS" ? " (first 5 s aligned)"
+                  : series[k].live            ? ", Huber, live"
+                                              : ", Huber") +
+                 fmt::format(": RMSE {:.2f} m", series[k].live ? picked[k]->global_rmse_live
+                                                                : picked[k]->global_rmse),
              11);
   }
   svg.Line(left, H - bottom, W - right, H - bottom, "black", 1);
