@@ -4,16 +4,21 @@
 //    p95 per frame (ms). Target: total median < 15 ms, p95 < 40 ms per frame (backend amortised
 //    over frames: it solves every frame, marginalises at keyframes).
 //  - BM_FrontendOnly: the frontend alone over the same frames.
+//  - BM_GnssSmoother/N: SmoothGnssAlignment over N frames at 20 Hz (a 5 m/s circle) with a GNSS
+//    sample (3 m noise) every 4th frame: the one-off cost after a run with GNSS (N = 4000: the
+//    1 km flight of `optinav bench gnss`).
 // Data: ../shared/data (or $OPTINAV_SHARED_DATA).
 #include <cstdlib>
 #include <filesystem>
 #include <map>
+#include <random>
 
 #include <benchmark/benchmark.h>
 #include <opencv2/imgcodecs.hpp>
 
 #include "optinav/io/euroc_dataset.h"
 #include "optinav/vio/estimator.h"
+#include "optinav/vio/gnss_smoother.h"
 
 namespace {
 
@@ -86,6 +91,37 @@ void BM_FrontendOnly(benchmark::State& state) {
       benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
 }
 BENCHMARK(BM_FrontendOnly)->Unit(benchmark::kMillisecond)->Iterations(3);
+
+void BM_GnssSmoother(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(0));
+  std::vector<vio::FrameEstimate> estimates;
+  std::vector<vio::GnssSample> samples;
+  std::mt19937 rng(1);
+  std::normal_distribution<double> noise(0.0, 3.0);
+  vio::WorldAlignment live;
+  live.yaw_rad = 0.5;
+  for (int i = 0; i < n; ++i) {
+    const double t = 0.05 * i, w = 5.0 / 150.0;
+    const Eigen::Vector3d p(150 * std::cos(w * t), 150 * std::sin(w * t), 10.0);
+    vio::FrameEstimate e;
+    e.state.t_ns = static_cast<int64_t>(i) * 50'000'000;
+    e.state.world_from_body = Rigid3d(Eigen::Quaterniond::Identity(), p);
+    live.translation = Eigen::Vector3d(noise(rng), noise(rng), noise(rng)) * 0.1;
+    e.enu_from_world = live;
+    estimates.push_back(e);
+    if (i % 4 == 0) {
+      vio::GnssSample g;
+      g.t_ns = e.state.t_ns + 10'000'000;
+      g.position_enu_m = live.EnuFromWorld() * p + Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+      g.sigma_m = 3.0;
+      samples.push_back(g);
+    }
+  }
+  for (auto _ : state)
+    benchmark::DoNotOptimize(
+        vio::SmoothGnssAlignment(estimates, {}, samples, {}, vio::GnssFusionOptions{}));
+}
+BENCHMARK(BM_GnssSmoother)->Arg(1000)->Arg(4000)->Arg(16000)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 
