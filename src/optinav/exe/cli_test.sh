@@ -272,6 +272,9 @@ grep -q "never initialised" "$WORK/err.txt" || fail "vio gnss: missing alignment
 grep -q '"gnss"' "$WORK/g.json" || fail "vio gnss: stats lack the gnss block"
 grep -q '"smoothed_tracks": 0' "$WORK/g.json" || fail "vio gnss: stats lack the smoother's figures"
 [[ ! -f "$WORK/g.live.tum" ]] || fail "vio gnss: a live ENU trajectory without an alignment"
+expect_ok "vio gnss live out without alignment" "$BIN" vio --dataset "$MICRO" --gnss \
+  --gnss-file "$WORK/gnss_llh.csv" --out "$WORK/g2.tum" --gnss-live-out "$WORK/g2_live.tum" --max-frames 20
+grep -q "g2_live.tum not written" "$WORK/err.txt" || fail "vio gnss: unwritten --gnss-live-out not reported"
 expect_error "vio gnss missing file" "GNSS file not found" "$BIN" vio --dataset "$MICRO" --gnss --out "$WORK/x.tum"
 expect_error "vio gnss in stereo mode" "stereo-imu" "$BIN" vio --dataset "$MICRO" --gnss \
   --gnss-file "$WORK/gnss_llh.csv" --mode stereo --out "$WORK/x.tum"

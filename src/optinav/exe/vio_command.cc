@@ -348,9 +348,12 @@ int RunVio(int argc, char** argv) {
       const std::string stem = StemOf(out);
       if (rejected_out.empty()) rejected_out = stem + ".gnss_rejected.csv";
       io::WriteFileAtomically(rejected_out, RejectedCsv(r.gnss_rejected));
-      if (frame == "enu" && gnss_live_out.empty() && !gnss_no_smooth)
+      // The live estimate beside the smoothed one (by default only when they differ).
+      if (frame == "enu" && gnss_live_out.empty() && r.gnss_smoothing.tracks_smoothed)
         gnss_live_out = stem + ".live.tum";
-      if (frame == "enu" && !gnss_live_out.empty())
+      if (frame != "enu" && !gnss_live_out.empty())
+        spdlog::warn("gnss: no ENU alignment: {} not written", gnss_live_out);
+      else if (!gnss_live_out.empty())
         io::WriteTrajectory(gnss_live_out, vio::EstimatesToEnuTrajectory(r.estimates),
                             io::TrajectoryFormat::kTum);
       if (frame == "enu" && gnss_input->origin_lat_lon_height) {

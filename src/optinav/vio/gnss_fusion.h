@@ -163,8 +163,9 @@ class GnssFusion {
   // The current estimate of enu_from_world, once initialised.
   std::optional<WorldAlignment> alignment() const { return alignment_; }
   const std::vector<RejectedGnss>& rejected() const { return rejected_; }
-  // The samples that entered the estimate (factors and the alignment's initial evidence), in
-  // time order, with the sigma the fusion gave them (the model sigma included).
+  // The samples that entered the estimate (factors and the alignment's initial evidence), with
+  // the sample's sigma and model_sigma_m in quadrature (not the factor's: that adds the modelled
+  // VIO uncertainty and factor_sigma_scale).
   const std::vector<GnssSample>& used() const { return used_; }
   const std::vector<AlignmentInflation>& inflations() const { return inflations_; }
   const GnssFusionStats& stats() const { return stats_; }

@@ -105,6 +105,8 @@ struct FusedRun {
   std::vector<int64_t> t_ns;
   std::vector<Eigen::Vector3d> world, enu, truth_world, truth_enu;
   std::vector<Eigen::Vector3d> enu_smoothed;  // SmoothGnssAlignment of the run
+  int tracks_smoothed = 0;
+  size_t samples_used = 0, samples_smoothed = 0;
   std::vector<bool> aligned;
   std::vector<WorldAlignment> alignments;
   GnssFusionStats stats;
@@ -167,6 +169,9 @@ FusedRun RunFusion(const SyntheticScene& scene, const std::vector<SyntheticFrame
   }
   const GnssSmoothing smoothed =
       SmoothGnssAlignment(estimates, {}, fusion.used(), fusion.inflations(), gnss_options);
+  run.tracks_smoothed = smoothed.tracks_smoothed;
+  run.samples_used = fusion.used().size();
+  run.samples_smoothed = smoothed.samples;
   for (size_t i = 0; i < estimates.size(); ++i)
     run.enu_smoothed.push_back(
         smoothed.enu_from_world[i]
@@ -247,6 +252,11 @@ TEST(GnssFusion, RecoversTheEnuAlignmentAndBoundsTheError) {
   std::printf("smoothed over the run: global RMSE from 10 s %.3f m (< 1.1 x the live %.3f m)\n",
               smoothed, rmse);
   EXPECT_LT(smoothed, 1.1 * rmse);
+  EXPECT_EQ(fused.tracks_smoothed, 1);
+  // Every accepted sample is smoothed but the one before the first recorded frame (t = 0.037 s);
+  // accepted = the factors and the older samples of the initialisation (its prior).
+  EXPECT_EQ(fused.samples_smoothed + 1, fused.samples_used);
+  EXPECT_GT(fused.samples_used, fused.stats.factors);
   // The yaw of the alignment is the truth's up to the VIO's own yaw drift (< 1 deg here).
   const double yaw_error =
       std::remainder(fused.final_alignment.yaw_rad - TrueAlignment().yaw_rad, 2 * M_PI);
@@ -338,10 +348,11 @@ TEST(GnssFusion, OutageFallsBackToVioAndReconverges) {
   }();
   std::printf(
       "smoothed: growth over the outage %.2f m (< VIO alone's %.2f m), max error in it %.2f m (< "
-      "the live estimate's %.2f m at the outage's end)\n",
-      smoothed_growth, alone1 - alone0, smoothed_max, ErrorAt(fused, t1));
+      "the live estimate's %.2f m at the outage's end), at its end %.2f m (< 0.8 x live)\n",
+      smoothed_growth, alone1 - alone0, smoothed_max, ErrorAt(fused, t1), ErrorAt(fused, t1, true));
   EXPECT_LT(smoothed_growth, alone1 - alone0);
   EXPECT_LT(smoothed_max, ErrorAt(fused, t1));
+  EXPECT_LT(ErrorAt(fused, t1, true), 0.8 * ErrorAt(fused, t1));
 }
 
 TEST(GnssFusion, WaitsForMotionBeforeAligning) {

@@ -82,7 +82,7 @@ WorldAlignment FromVector(const Eigen::Vector4d& v) {
 }  // namespace
 
 GnssSmoothing SmoothGnssAlignment(const std::vector<FrameEstimate>& estimates,
-                                  const std::vector<LostInterval>& lost,
+                                  const std::vector<size_t>& track_starts,
                                   const std::vector<GnssSample>& used_in,
                                   const std::vector<AlignmentInflation>& inflations,
                                   const GnssFusionOptions& options) {
@@ -111,9 +111,7 @@ GnssSmoothing SmoothGnssAlignment(const std::vector<FrameEstimate>& estimates,
   size_t begin = 0;
   for (size_t i = 1; i <= n; ++i) {
     const bool split =
-        i == n || std::any_of(lost.begin(), lost.end(), [&](const LostInterval& l) {
-          return estimates[i - 1].state.t_ns < l.end_ns && estimates[i].state.t_ns >= l.end_ns;
-        });
+        i == n || std::find(track_starts.begin(), track_starts.end(), i) != track_starts.end();
     if (split) tracks.emplace_back(begin, i), begin = i;
   }
 
@@ -147,16 +145,18 @@ GnssSmoothing SmoothGnssAlignment(const std::vector<FrameEstimate>& estimates,
       double var_yaw = k2 * options.alignment_walk_rad_per_sqrt_m *
                            options.alignment_walk_rad_per_sqrt_m * dist +
                        options.smooth_walk_rad_per_sqrt_s * options.smooth_walk_rad_per_sqrt_s * dt;
-      while (inflation != inflations.end() && inflation->t_ns <= s0.t_ns) ++inflation;
-      for (; inflation != inflations.end() && inflation->t_ns <= s1.t_ns; ++inflation) {
+      // An inflation made while fusing a sample in [t_i+1, t_i+2) loosens the step into frame
+      // i+1, the frame that sample constrains.
+      while (inflation != inflations.end() && inflation->t_ns < s1.t_ns) ++inflation;
+      const int64_t t_next = i + 2 < e ? estimates[i + 2].state.t_ns : INT64_MAX;
+      for (; inflation != inflations.end() && inflation->t_ns < t_next; ++inflation) {
         var_t += inflation->sigma.head<3>().squaredNorm() / 3.0;
         var_yaw += inflation->sigma[3] * inflation->sigma[3];
       }
-      problem.AddResidualBlock(
-          new ceres::AutoDiffCostFunction<WalkCost, 4, 4, 4>(
-              new WalkCost(s0.world_from_body.translation, std::sqrt(std::max(var_t, 1e-12)),
-                           std::sqrt(std::max(var_yaw, 1e-14)))),
-          nullptr, params[i - b].data(), params[i + 1 - b].data());
+      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<WalkCost, 4, 4, 4>(new WalkCost(
+                                   s0.world_from_body.translation, std::sqrt(std::max(var_t, 1e-8)),
+                                   std::sqrt(std::max(var_yaw, 1e-12)))),
+                               nullptr, params[i - b].data(), params[i + 1 - b].data());
     }
     size_t frame = b;
     for (auto it = s_begin; it != s_end; ++it) {

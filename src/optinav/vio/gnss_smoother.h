@@ -31,11 +31,11 @@ struct GnssSmoothing {
   double solve_s = 0;
 };
 
-// `estimates` in time order (world frame, with the live alignments), `lost` splits them into VIO
-// tracks (a track starts at LostInterval::end_ns), `used` / `inflations` as GnssFusion records
-// them (`inflations` in time order).
+// `estimates` in time order (world frame, with the live alignments); `track_starts`: the index of
+// the first estimate of each VIO track after the first (VioRunResult::track_starts); `used` /
+// `inflations` as GnssFusion records them (`inflations` in time order).
 GnssSmoothing SmoothGnssAlignment(const std::vector<FrameEstimate>& estimates,
-                                  const std::vector<LostInterval>& lost,
+                                  const std::vector<size_t>& track_starts,
                                   const std::vector<GnssSample>& used,
                                   const std::vector<AlignmentInflation>& inflations,
                                   const GnssFusionOptions& options);

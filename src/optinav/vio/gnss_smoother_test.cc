@@ -33,7 +33,10 @@ struct SyntheticRun {
   std::vector<Eigen::Vector3d> truth;  // ENU, per frame
 };
 
-SyntheticRun MakeRun(int seed, double outlier_fraction = 0.0) {
+// lever: the antenna in the body frame (the body's axes are ENU's here); jump_m: the VIO world
+// jumps by this (along ENU x) from frame 1000 on, as after a drift the fusion's test caught.
+SyntheticRun MakeRun(int seed, double outlier_fraction = 0.0,
+                     const Eigen::Vector3d& lever = Eigen::Vector3d::Zero(), double jump_m = 0) {
   SyntheticRun run;
   std::mt19937 rng(seed), outlier_rng(100 + seed);  // the outliers leave the noise draw alone
   std::normal_distribution<double> n01(0.0, 1.0);
@@ -43,13 +46,15 @@ SyntheticRun MakeRun(int seed, double outlier_fraction = 0.0) {
   for (int i = 0; i < kFrames; ++i) {
     const double s = i * 0.05;
     const Eigen::Vector3d p_enu = TruePosition(s);
-    const Rigid3d world_from_enu = TrueAlignmentAt(s).EnuFromWorld().Inverse();
+    WorldAlignment truth = TrueAlignmentAt(s);
+    if (i >= 1000) truth.translation.x() += jump_m;
+    const Rigid3d world_from_enu = truth.EnuFromWorld().Inverse();
     FrameEstimate e;
     e.state.t_ns = 1'000'000'000 + i * kFrameNs;
     e.state.world_from_body = Rigid3d(world_from_enu.rotation, world_from_enu * p_enu);
     for (int k = 0; k < 3; ++k)
       live_error[k] = rho * live_error[k] + std::sqrt(1 - rho * rho) * 0.4 * n01(rng);
-    WorldAlignment live = TrueAlignmentAt(s);
+    WorldAlignment live = truth;
     live.translation += live_error;
     e.enu_from_world = live;
     run.estimates.push_back(e);
@@ -58,7 +63,7 @@ SyntheticRun MakeRun(int seed, double outlier_fraction = 0.0) {
       GnssSample g;
       g.t_ns = e.state.t_ns + kFrameNs / 2;
       g.position_enu_m =
-          TruePosition(s + 0.025) + 3.0 * Eigen::Vector3d(n01(rng), n01(rng), n01(rng));
+          TruePosition(s + 0.025) + lever + 3.0 * Eigen::Vector3d(n01(rng), n01(rng), n01(rng));
       if (u(outlier_rng) < outlier_fraction)
         g.position_enu_m +=
             30.0 * Eigen::Vector3d(n01(outlier_rng), n01(outlier_rng), 0.0).normalized();
@@ -128,15 +133,16 @@ TEST(GnssSmoother, RobustNormsHoldAgainstOutliers) {
 
 TEST(GnssSmoother, TracksAreSmoothedApartAndShortOnesKeepTheLiveAlignment) {
   SyntheticRun run = MakeRun(5);
-  // Tracking lost from frame 999 to frame 1000; the second track gets 2 samples only.
-  const LostInterval lost{run.estimates[999].state.t_ns, run.estimates[1000].state.t_ns, "test"};
+  // A new VIO track from frame 1000 on; the second track gets 2 samples only.
+  const int64_t split_ns = run.estimates[1000].state.t_ns;
   std::vector<GnssSample> used;
   for (const GnssSample& g : run.samples)
-    if (g.t_ns < lost.end_ns) used.push_back(g);
+    if (g.t_ns < split_ns) used.push_back(g);
   used.push_back(run.samples[300]), used.back().t_ns = run.estimates[1500].state.t_ns;
   used.push_back(run.samples[301]), used.back().t_ns = run.estimates[1504].state.t_ns;
-  const GnssSmoothing s = SmoothGnssAlignment(run.estimates, {lost}, used, {}, GnssFusionOptions());
+  const GnssSmoothing s = SmoothGnssAlignment(run.estimates, {1000}, used, {}, GnssFusionOptions());
   EXPECT_EQ(s.tracks_smoothed, 1);
+  EXPECT_NE(s.enu_from_world[999]->translation, run.estimates[999].enu_from_world->translation);
   for (size_t i = 1000; i < run.estimates.size(); ++i) {
     ASSERT_TRUE(s.enu_from_world[i]);
     EXPECT_EQ(s.enu_from_world[i]->translation, run.estimates[i].enu_from_world->translation);
@@ -150,9 +156,46 @@ TEST(GnssSmoother, TracksAreSmoothedApartAndShortOnesKeepTheLiveAlignment) {
   EXPECT_DOUBLE_EQ(GlobalRmse(run, live.enu_from_world), GlobalRmse(run, Live(run)));
 }
 
+TEST(GnssSmoother, LeverArmAndInflationsAreUsed) {
+  const Eigen::Vector3d lever(1.0, 0.5, 0.8);
+  const SyntheticRun run = MakeRun(7, 0.0, lever, 2.0);
+  GnssFusionOptions o;
+  // What the fusion's drift test would report at the jump (first sample after frame 1000).
+  const AlignmentInflation at_jump{run.estimates[1001].state.t_ns, Eigen::Vector4d(2, 2, 2, 0.01)};
+  const double without_lever = GlobalRmse(
+      run, SmoothGnssAlignment(run.estimates, {}, run.samples, {at_jump}, o).enu_from_world);
+  o.lever_arm_in_body = lever;
+  const double without_inflation =
+      GlobalRmse(run, SmoothGnssAlignment(run.estimates, {}, run.samples, {}, o).enu_from_world);
+  const double both = GlobalRmse(
+      run, SmoothGnssAlignment(run.estimates, {}, run.samples, {at_jump}, o).enu_from_world);
+  const SyntheticRun steady = MakeRun(7, 0.0, lever, 0.0);
+  const double no_jump = GlobalRmse(
+      steady, SmoothGnssAlignment(steady.estimates, {}, steady.samples, {}, o).enu_from_world);
+  std::printf(
+      "2 m jump of the VIO at 50 s, lever arm (1, 0.5, 0.8) m: global RMSE %.3f m with both, %.3f "
+      "without the inflation (limit 0.8 x), %.3f without the lever arm (limit 0.6 x); %.3f m for "
+      "the "
+      "same run without the jump (limit + 0.1 m)\n",
+      both, without_inflation, without_lever, no_jump);
+  EXPECT_LT(both, no_jump + 0.1);  // the inflation lets the smoother take the jump
+  EXPECT_LT(both, 0.8 * without_inflation);
+  EXPECT_LT(both, 0.6 * without_lever);
+}
+
 TEST(GnssSmoother, FramesBeforeTheFirstAlignmentUseTheFirstOne) {
   SyntheticRun run = MakeRun(6);
   for (int i = 0; i < 100; ++i) run.estimates[i].enu_from_world.reset();
+  // Smoothed, they are re-estimated from the samples (the first alignment is frame 100's).
+  const GnssSmoothing on =
+      SmoothGnssAlignment(run.estimates, {}, run.samples, {}, GnssFusionOptions());
+  ASSERT_TRUE(on.enu_from_world[0]);
+  EXPECT_NE(on.enu_from_world[0]->translation, run.estimates[100].enu_from_world->translation);
+  EXPECT_LT(
+      (on.enu_from_world[0]->EnuFromWorld() * run.estimates[0].state.world_from_body.translation -
+       run.truth[0])
+          .norm(),
+      1.0);
   GnssFusionOptions off;
   off.smooth = false;
   const GnssSmoothing s = SmoothGnssAlignment(run.estimates, {}, run.samples, {}, off);

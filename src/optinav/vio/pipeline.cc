@@ -137,8 +137,11 @@ VioRunResult RunOnPairs(const camera::StereoRig& rig, const Rigid3d& body_from_c
     // Earlier frames first (an in-motion alignment window, output when it succeeds).
     std::vector<FrameEstimate> delayed = estimator.TakeDelayedEstimates();
     const FrameEstimate* first = !delayed.empty() ? &delayed.front() : e ? &*e : nullptr;
-    if (closer && first && estimator.initializations() != track_initializations) {
-      if (track_initializations > 0) closer->NewTrack(first->state.t_ns);
+    if (first && estimator.initializations() != track_initializations) {
+      if (track_initializations > 0) {
+        result.track_starts.push_back(result.estimates.size());
+        if (closer) closer->NewTrack(first->state.t_ns);
+      }
       track_initializations = estimator.initializations();
     }
     for (FrameEstimate& d : delayed) result.estimates.push_back(d);
@@ -188,7 +191,7 @@ VioRunResult RunOnPairs(const camera::StereoRig& rig, const Rigid3d& body_from_c
   if (const GnssFusion* gnss = estimator.gnss()) {
     result.gnss_rejected = gnss->rejected();
     result.gnss_stats = gnss->stats();
-    result.gnss_smoothing = SmoothGnssAlignment(result.estimates, result.lost, gnss->used(),
+    result.gnss_smoothing = SmoothGnssAlignment(result.estimates, result.track_starts, gnss->used(),
                                                 gnss->inflations(), gnss->options());
     if (result.gnss_smoothing.tracks_smoothed)
       spdlog::info("gnss: output smoothed over {} sample(s) in {:.2f} s",

@@ -48,6 +48,10 @@ struct VioRunOptions {
 struct VioRunResult {
   std::vector<FrameEstimate> estimates;
   std::vector<LostInterval> lost;
+  // Index in `estimates` of the first estimate of each VIO track after the first (a
+  // re-initialisation starts a new world frame; with an in-motion start its first estimates are
+  // dated before the LostInterval's end_ns).
+  std::vector<size_t> track_starts;
   std::map<std::string, TimingSummary> timing;  // per module, seconds per frame
   size_t frames_total = 0, frames_processed = 0, frames_unpaired = 0;
   int initializations = 0;
