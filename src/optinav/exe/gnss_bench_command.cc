@@ -662,7 +662,7 @@ int RunGnssBench(int argc, char** argv) {
 
     std::string outage;
     for (const RunResult& r : runs) {
-      if (!r.ok || r.condition != "3 m + 60 s outage") continue;
+      if (!r.ok || !r.aligned || r.condition != "3 m + 60 s outage") continue;  // no ENU: no error
       outage += fmt::format(
           "| {:<8} | {:<5} | {:>4} | {:>10.2f} | {:>10.2f} | {:>10.2f} | {:>14.2f} | {:>12.2f} | "
           "{:>11.2f} | {:>11.2f} |\n",
