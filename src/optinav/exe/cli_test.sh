@@ -293,6 +293,8 @@ expect_error "vio gnss bad factor scale" "factor_sigma_scale must be > 0" "$BIN"
   --dataset "$MICRO" --gnss --gnss-file "$WORK/gnss_llh.csv" --gnss-factor-scale 0 --out "$WORK/x.tum"
 expect_error "vio gnss bad smoother walk" "smooth_walk_scale must be > 0" "$BIN" vio \
   --dataset "$MICRO" --gnss --gnss-file "$WORK/gnss_llh.csv" --gnss-smooth-walk-scale 0 --out "$WORK/x.tum"
+expect_error "bench gnss bad smoother walk" "--gnss-smooth-walk-scale" \
+  "$BIN" bench gnss --out "$WORK/bg" --gnss-smooth-walk-scale 0
 expect_error "bench gnss bad factor scale" "factor_sigma_scale must be > 0" \
   "$BIN" bench gnss --out "$WORK/bg" --gnss-factor-scale -1
 printf '#timestamp [ns],x,y,z\n' > "$WORK/g_empty.csv"

@@ -185,16 +185,19 @@ std::string RunFileStem(const RunResult& r) {
   return name;
 }
 
-// The fusion settings a GNSS run was made with (--gnss-factor-scale, --gnss-walk): a run made
-// with other settings is not reused.
+// The fusion settings a GNSS run was made with (--gnss-factor-scale, --gnss-walk,
+// --gnss-smooth-walk-scale): a run made with other settings is not reused.
 nlohmann::json FusionSettings() {
   const vio::GnssFusionOptions& o = FusionDefaults();
-  return {{"factor_sigma_scale", o.factor_sigma_scale},
+  nlohmann::json j = {{"factor_sigma_scale", o.factor_sigma_scale},
           {"alignment_walk_m_per_sqrt_m", o.alignment_walk_m_per_sqrt_m},
           {"alignment_walk_rad_per_sqrt_m", o.alignment_walk_rad_per_sqrt_m},
           {"smooth", o.smooth},
           {"smooth_walk_m_per_sqrt_s", o.smooth_walk_m_per_sqrt_s},
           {"smooth_walk_rad_per_sqrt_s", o.smooth_walk_rad_per_sqrt_s}};
+  // Recorded when not the default (runs made before the option existed used the default).
+  if (o.smooth_walk_scale != 1.0) j["smooth_walk_scale"] = o.smooth_walk_scale;
+  return j;
 }
 
 double JsonNumber(const nlohmann::json& j, const char* key) {
@@ -211,7 +214,8 @@ bool LoadRun(const fs::path& stem, RunResult* r) {
         j.at("norm") != r->norm || j.at("seed") != r->seed)
       throw Error("names another run", {.file = json_path.string()});
     if (r->condition != "no GNSS" && j.value("gnss_settings", nlohmann::json()) != FusionSettings())
-      throw Error("made with other fusion settings (--gnss-factor-scale, --gnss-walk)",
+      throw Error("made with other fusion settings (--gnss-factor-scale, --gnss-walk, "
+                  "--gnss-smooth-walk-scale)",
                   {.file = json_path.string()});
     r->poses = j.at("poses").get<size_t>();
     r->lost = j.at("lost_intervals").get<size_t>();
@@ -498,6 +502,10 @@ int RunGnssBench(int argc, char** argv) {
                  "GNSS factor sigma x this for every fused run (as optinav vio "
                  "--gnss-factor-scale)")
       ->capture_default_str();
+  app.add_option("--gnss-smooth-walk-scale", FusionDefaults().smooth_walk_scale,
+                 "the output smoother's random walk = the alignment walk x this, for every fused "
+                 "run (as optinav vio --gnss-smooth-walk-scale)")
+      ->capture_default_str();
   app.add_option("--gnss-walk", walk,
                  "alignment random walk M_PER_SQRT_M,RAD_PER_SQRT_M for every fused run (default "
                  "from GnssFusionOptions, as optinav vio --gnss-walk)");
@@ -537,7 +545,9 @@ int RunGnssBench(int argc, char** argv) {
       selected.push_back(&*it);
     }
     if (const std::string e = FusionDefaults().Check(); !e.empty())
-      throw Error(e, {.field = "--gnss-factor-scale"});
+      throw Error(e, {.field = e.find("smooth_walk") != std::string::npos
+                                   ? "--gnss-smooth-walk-scale"
+                                   : "--gnss-factor-scale"});
     if (!walk.empty()) {
       const std::vector<double> w =
           ParseNumbers(walk, 2, "M_PER_SQRT_M,RAD_PER_SQRT_M", "--gnss-walk");
