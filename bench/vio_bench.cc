@@ -112,7 +112,8 @@ void BM_GnssSmoother(benchmark::State& state) {
     if (i % 4 == 0) {
       vio::GnssSample g;
       g.t_ns = e.state.t_ns + 10'000'000;
-      g.position_enu_m = live.EnuFromWorld() * p + Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+      g.position_enu_m =
+          live.EnuFromWorld() * p + Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
       g.sigma_m = 3.0;
       samples.push_back(g);
     }

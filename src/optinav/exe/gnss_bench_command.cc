@@ -82,7 +82,7 @@ struct RunResult {
          err_10s_after = NAN, recovery_s = NAN;
   std::vector<std::pair<double, double>> error_over_time;  // (s, m), unaligned
   std::vector<std::pair<double, double>> live_error_over_time;
-  Trajectory estimate;                                     // as output (world or ENU)
+  Trajectory estimate;   // as output (world or ENU)
   Trajectory live;       // GNSS runs with an alignment: the live estimate in ENU
   bool aligned = false;  // ENU alignment made (GNSS runs)
 };
@@ -190,11 +190,11 @@ std::string RunFileStem(const RunResult& r) {
 nlohmann::json FusionSettings() {
   const vio::GnssFusionOptions& o = FusionDefaults();
   nlohmann::json j = {{"factor_sigma_scale", o.factor_sigma_scale},
-          {"alignment_walk_m_per_sqrt_m", o.alignment_walk_m_per_sqrt_m},
-          {"alignment_walk_rad_per_sqrt_m", o.alignment_walk_rad_per_sqrt_m},
-          {"smooth", o.smooth},
-          {"smooth_walk_m_per_sqrt_s", o.smooth_walk_m_per_sqrt_s},
-          {"smooth_walk_rad_per_sqrt_s", o.smooth_walk_rad_per_sqrt_s}};
+                      {"alignment_walk_m_per_sqrt_m", o.alignment_walk_m_per_sqrt_m},
+                      {"alignment_walk_rad_per_sqrt_m", o.alignment_walk_rad_per_sqrt_m},
+                      {"smooth", o.smooth},
+                      {"smooth_walk_m_per_sqrt_s", o.smooth_walk_m_per_sqrt_s},
+                      {"smooth_walk_rad_per_sqrt_s", o.smooth_walk_rad_per_sqrt_s}};
   // Recorded when not the default (runs made before the option existed used the default).
   if (o.smooth_walk_scale != 1.0) j["smooth_walk_scale"] = o.smooth_walk_scale;
   return j;
@@ -214,9 +214,10 @@ bool LoadRun(const fs::path& stem, RunResult* r) {
         j.at("norm") != r->norm || j.at("seed") != r->seed)
       throw Error("names another run", {.file = json_path.string()});
     if (r->condition != "no GNSS" && j.value("gnss_settings", nlohmann::json()) != FusionSettings())
-      throw Error("made with other fusion settings (--gnss-factor-scale, --gnss-walk, "
-                  "--gnss-smooth-walk-scale)",
-                  {.file = json_path.string()});
+      throw Error(
+          "made with other fusion settings (--gnss-factor-scale, --gnss-walk, "
+          "--gnss-smooth-walk-scale)",
+          {.file = json_path.string()});
     r->poses = j.at("poses").get<size_t>();
     r->lost = j.at("lost_intervals").get<size_t>();
     r->factors = j.at("factors").get<size_t>();
@@ -306,16 +307,29 @@ RunResult RunOne(const Sequence& seq, const Condition* condition, const std::str
                  eval::ComputeApe(synced.ref, aligned, eval::PoseRelation::kTranslation).errors)
           .rmse;
     };
+    const int64_t t0 = seq.truth.t_ns.front();
+    // Position error over time (s from the truth's start, m), no alignment.
+    const auto error_over_time = [&](const Trajectory& ref, const Trajectory& est) {
+      const eval::ErrorSeries e = eval::ComputeApe(ref, est, eval::PoseRelation::kTranslation);
+      std::vector<std::pair<double, double>> series;
+      for (size_t i = 0; i < e.errors.size(); ++i)
+        series.emplace_back((ref.t_ns[e.indices[i]] - t0) * 1e-9, e.errors[i]);
+      return series;
+    };
+    // RMSE of a series from t_from s on (NAN when empty).
+    const auto rmse_from = [](const std::vector<std::pair<double, double>>& series, double t_from) {
+      double sse = 0;
+      size_t n = 0;
+      for (const auto& [t, err] : series)
+        if (t >= t_from) sse += err * err, ++n;
+      return n ? std::sqrt(sse / n) : NAN;
+    };
     if (!r.live.empty()) {
       const eval::SyncedPair live = eval::Synchronize(seq.truth, r.live);
       r.ate_se3_live = ate_se3(live);
-      const eval::ErrorSeries e =
-          eval::ComputeApe(live.ref, live.est, eval::PoseRelation::kTranslation);
-      r.global_rmse_live = eval::ComputeStatistics(e.errors).rmse;
-      std::vector<std::pair<double, double>>& series = r.live_error_over_time;
-      for (size_t i = 0; i < e.errors.size(); ++i)
-        series.emplace_back((live.ref.t_ns[e.indices[i]] - seq.truth.t_ns.front()) * 1e-9,
-                            e.errors[i]);
+      r.live_error_over_time = error_over_time(live.ref, live.est);
+      const auto& series = r.live_error_over_time;
+      r.global_rmse_live = rmse_from(series, -INFINITY);
       if (condition && condition->outage_s > 0) {
         const double ts = seq.outage_start_s, te = ts + condition->outage_s;
         r.outage_growth_live = ErrorAtTime(series, te) - ErrorAtTime(series, ts);
@@ -336,18 +350,9 @@ RunResult RunOne(const Sequence& seq, const Condition* condition, const std::str
         if (synced.est.t_ns[i] - synced.est.t_ns[0] <= 5'000'000'000) a.n_to_align = i + 1;
       eval::AlignTrajectory(synced.ref, &global, a);
     }
-    const eval::ErrorSeries e =
-        eval::ComputeApe(synced.ref, global, eval::PoseRelation::kTranslation);
-    r.global_rmse = eval::ComputeStatistics(e.errors).rmse;
-    const int64_t t0 = seq.truth.t_ns.front();
-    double sse_10s = 0;
-    size_t n_10s = 0;
-    for (size_t i = 0; i < e.errors.size(); ++i) {
-      const double t = (synced.ref.t_ns[e.indices[i]] - t0) * 1e-9;
-      r.error_over_time.emplace_back(t, e.errors[i]);
-      if (t >= 10.0) sse_10s += e.errors[i] * e.errors[i], ++n_10s;
-    }
-    if (n_10s) r.global_rmse_10s = std::sqrt(sse_10s / n_10s);
+    r.error_over_time = error_over_time(synced.ref, global);
+    r.global_rmse = rmse_from(r.error_over_time, -INFINITY);
+    r.global_rmse_10s = rmse_from(r.error_over_time, 10.0);
     if (condition && condition->outage_s > 0) {
       const double ts = seq.outage_start_s, te = ts + condition->outage_s;
       r.outage_start_err = ErrorAtTime(r.error_over_time, ts);
@@ -449,8 +454,7 @@ void WritePlot(const std::string& path, const std::vector<RunResult>& runs, cons
   for (size_t k = 0; k < series.size(); ++k) {
     if (!picked[k] || (series[k].live && picked[k]->live_error_over_time.empty())) continue;
     std::string pts;
-    const auto& s =
-        series[k].live ? picked[k]->live_error_over_time : picked[k]->error_over_time;
+    const auto& s = series[k].live ? picked[k]->live_error_over_time : picked[k]->error_over_time;
     const size_t step = std::max<size_t>(1, s.size() / 1500);
     for (size_t i = 0; i < s.size(); i += step)
       pts += fmt::format("{:.1f},{:.1f} ", X(s[i].first), Y(s[i].second));
@@ -461,8 +465,8 @@ void WritePlot(const std::string& path, const std::vector<RunResult>& runs, cons
                  (series[k].name == "no GNSS" ? " (first 5 s aligned)"
                   : series[k].live            ? ", Huber, live"
                                               : ", Huber") +
-                 fmt::format(": RMSE {:.2f} m", series[k].live ? picked[k]->global_rmse_live
-                                                                : picked[k]->global_rmse),
+                 fmt::format(": RMSE {:.2f} m",
+                             series[k].live ? picked[k]->global_rmse_live : picked[k]->global_rmse),
              11);
   }
   svg.Line(left, H - bottom, W - right, H - bottom, "black", 1);
@@ -545,9 +549,9 @@ int RunGnssBench(int argc, char** argv) {
       selected.push_back(&*it);
     }
     if (const std::string e = FusionDefaults().Check(); !e.empty())
-      throw Error(e, {.field = e.find("smooth_walk") != std::string::npos
-                                   ? "--gnss-smooth-walk-scale"
-                                   : "--gnss-factor-scale"});
+      throw Error(e,
+                  {.field = e.find("smooth_walk") != std::string::npos ? "--gnss-smooth-walk-scale"
+                                                                       : "--gnss-factor-scale"});
     if (!walk.empty()) {
       const std::vector<double> w =
           ParseNumbers(walk, 2, "M_PER_SQRT_M,RAD_PER_SQRT_M", "--gnss-walk");

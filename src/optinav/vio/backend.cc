@@ -217,10 +217,7 @@ void SlidingWindowBackend::InflateAlignment(const Eigen::Vector4d& sigma) {
 }
 
 WorldAlignment SlidingWindowBackend::alignment() const {
-  WorldAlignment a;
-  a.translation = {alignment_[0], alignment_[1], alignment_[2]};
-  a.yaw_rad = alignment_[3];
-  return a;
+  return WorldAlignment::FromBlock(alignment_);
 }
 
 std::vector<double*> SlidingWindowBackend::TimedFactorBlocks(const TimedFactor& factor,

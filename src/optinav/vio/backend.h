@@ -103,8 +103,26 @@ struct WorldAlignment {
   Eigen::Vector3d translation = Eigen::Vector3d::Zero();
   double yaw_rad = 0;
   Rigid3d EnuFromWorld() const;
+  // As the parameter block [tx, ty, tz, yaw], and back.
+  Eigen::Vector4d Block() const {
+    return {translation.x(), translation.y(), translation.z(), yaw_rad};
+  }
+  static WorldAlignment FromBlock(const double* block) {
+    return {Eigen::Vector3d(block[0], block[1], block[2]), block[3]};
+  }
 };
 constexpr int kAlignmentSize = 4;
+
+// enu = Rz(yaw) p_world + t for the block [tx, ty, tz, yaw] (templated for autodiff cost
+// functions; p_world of doubles or of T).
+template <typename T, typename Point>
+void ApplyAlignment(const T* block, const Point& p_world, T* enu) {
+  using std::cos, std::sin;
+  const T c = cos(block[3]), s = sin(block[3]);
+  enu[0] = c * p_world.x() - s * p_world.y() + block[0];
+  enu[1] = s * p_world.x() + c * p_world.y() + block[1];
+  enu[2] = T(p_world.z()) + block[2];
+}
 
 // A factor on one state at an arbitrary time (GNSS positions plug in here).
 class TimedFactor {

@@ -126,10 +126,9 @@ class GnssFunctor {
     const T dt(dt_);
     const Vec3<T> p_t = p_i + v_i * dt + T(0.5) * gravity_.cast<T>() * dt * dt + q_i * dp;
     const Vec3<T> antenna = p_t + (q_i * dR) * lever_.cast<T>();
-    const T c = ceres::cos(align[3]), s = ceres::sin(align[3]);
-    residuals[0] = (c * antenna[0] - s * antenna[1] + align[0] - T(measured_[0])) * T(inv_sigma_);
-    residuals[1] = (s * antenna[0] + c * antenna[1] + align[1] - T(measured_[1])) * T(inv_sigma_);
-    residuals[2] = (antenna[2] + align[2] - T(measured_[2])) * T(inv_sigma_);
+    T enu[3];
+    ApplyAlignment(align, antenna, enu);
+    for (int k = 0; k < 3; ++k) residuals[k] = (enu[k] - T(measured_[k])) * T(inv_sigma_);
     return true;
   }
 
@@ -163,12 +162,10 @@ class GnssFactor : public TimedFactor {
   const ceres::LossFunction* loss_;
 };
 
-Eigen::Matrix2d Rot2(double yaw) { return Eigen::Rotation2Dd(yaw).toRotationMatrix(); }
-
 Eigen::Vector3d Apply(const WorldAlignment& a, const Eigen::Vector3d& p_world) {
+  const Eigen::Vector4d block = a.Block();
   Eigen::Vector3d out;
-  out.head<2>() = Rot2(a.yaw_rad) * p_world.head<2>() + a.translation.head<2>();
-  out.z() = p_world.z() + a.translation.z();
+  ApplyAlignment(block.data(), p_world, out.data());
   return out;
 }
 

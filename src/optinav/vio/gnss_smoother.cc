@@ -14,15 +14,6 @@
 namespace optinav::vio {
 namespace {
 
-// [tx, ty, tz, yaw] applied to a world point, templated for autodiff.
-template <typename T>
-void ApplyAlignment(const T* a, const Eigen::Vector3d& p, T* out) {
-  const T c = ceres::cos(a[3]), s = ceres::sin(a[3]);
-  out[0] = c * p.x() - s * p.y() + a[0];
-  out[1] = s * p.x() + c * p.y() + a[1];
-  out[2] = T(p.z()) + a[2];
-}
-
 // The alignment's change between consecutive frames, measured where the VIO is (a yaw change
 // about the current position moves nothing there).
 struct WalkCost {
@@ -68,18 +59,22 @@ struct WeakPriorCost {
   Eigen::Vector4d a0_;
 };
 
-Eigen::Vector4d ToVector(const WorldAlignment& a) {
-  return Eigen::Vector4d(a.translation.x(), a.translation.y(), a.translation.z(), a.yaw_rad);
-}
-
-WorldAlignment FromVector(const Eigen::Vector4d& v) {
-  WorldAlignment a;
-  a.translation = v.head<3>();
-  a.yaw_rad = v[3];
-  return a;
-}
-
 }  // namespace
+
+std::vector<std::optional<WorldAlignment>> LiveAlignments(
+    const std::vector<FrameEstimate>& estimates) {
+  std::vector<std::optional<WorldAlignment>> out(estimates.size());
+  const auto first = std::find_if(estimates.begin(), estimates.end(), [](const FrameEstimate& e) {
+    return e.enu_from_world.has_value();
+  });
+  if (first == estimates.end()) return out;
+  WorldAlignment live = *first->enu_from_world;
+  for (size_t i = 0; i < estimates.size(); ++i) {
+    if (estimates[i].enu_from_world) live = *estimates[i].enu_from_world;
+    out[i] = live;
+  }
+  return out;
+}
 
 GnssSmoothing SmoothGnssAlignment(const std::vector<FrameEstimate>& estimates,
                                   const std::vector<size_t>& track_starts,
@@ -88,19 +83,8 @@ GnssSmoothing SmoothGnssAlignment(const std::vector<FrameEstimate>& estimates,
                                   const GnssFusionOptions& options) {
   GnssSmoothing out;
   const size_t n = estimates.size();
-  out.enu_from_world.resize(n);
-  // The live alignments, filled as the live output does (frames before the first alignment use
-  // the first one, later gaps the last one).
-  const auto first = std::find_if(estimates.begin(), estimates.end(), [](const FrameEstimate& e) {
-    return e.enu_from_world.has_value();
-  });
-  if (first == estimates.end()) return out;
-  WorldAlignment live = *first->enu_from_world;
-  for (size_t i = 0; i < n; ++i) {
-    if (estimates[i].enu_from_world) live = *estimates[i].enu_from_world;
-    out.enu_from_world[i] = live;
-  }
-  if (!options.smooth) return out;
+  out.enu_from_world = LiveAlignments(estimates);  // the initial values
+  if (!options.smooth || n == 0 || !out.enu_from_world.front()) return out;
   Timer timer;
   std::vector<GnssSample> used = used_in;
   std::stable_sort(used.begin(), used.end(),
@@ -115,7 +99,6 @@ GnssSmoothing SmoothGnssAlignment(const std::vector<FrameEstimate>& estimates,
     if (split) tracks.emplace_back(begin, i), begin = i;
   }
 
-  const auto loss_factory = [&] { return MakeGnssLoss(options.norm, options.norm_parameter); };
   for (const auto& [b, e] : tracks) {
     if (e - b < 2) continue;
     const int64_t t_begin = estimates[b].state.t_ns, t_end = estimates[e - 1].state.t_ns;
@@ -127,7 +110,7 @@ GnssSmoothing SmoothGnssAlignment(const std::vector<FrameEstimate>& estimates,
     if (s_end - s_begin < 3) continue;
 
     std::vector<Eigen::Vector4d> params(e - b);
-    for (size_t i = b; i < e; ++i) params[i - b] = ToVector(*out.enu_from_world[i]);
+    for (size_t i = b; i < e; ++i) params[i - b] = out.enu_from_world[i]->Block();
     ceres::Problem problem;
     problem.AddResidualBlock(
         new ceres::AutoDiffCostFunction<WeakPriorCost, 4, 4>(new WeakPriorCost(params.front())),
@@ -172,7 +155,8 @@ GnssSmoothing SmoothGnssAlignment(const std::vector<FrameEstimate>& estimates,
       const Eigen::Vector3d antenna = pose.translation + pose.rotation * options.lever_arm_in_body;
       problem.AddResidualBlock(new ceres::AutoDiffCostFunction<SampleCost, 3, 4>(
                                    new SampleCost(antenna, it->position_enu_m, it->sigma_m)),
-                               loss_factory().release(), params[frame - b].data());
+                               MakeGnssLoss(options.norm, options.norm_parameter).release(),
+                               params[frame - b].data());
     }
     ceres::Solver::Options so;
     so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
@@ -185,7 +169,8 @@ GnssSmoothing SmoothGnssAlignment(const std::vector<FrameEstimate>& estimates,
                    t_begin * 1e-9, summary.message);
       continue;
     }
-    for (size_t i = b; i < e; ++i) out.enu_from_world[i] = FromVector(params[i - b]);
+    for (size_t i = b; i < e; ++i)
+      out.enu_from_world[i] = WorldAlignment::FromBlock(params[i - b].data());
     ++out.tracks_smoothed;
     out.samples += static_cast<size_t>(s_end - s_begin);
     spdlog::debug(

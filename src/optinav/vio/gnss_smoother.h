@@ -31,6 +31,11 @@ struct GnssSmoothing {
   double solve_s = 0;
 };
 
+// The live alignment of every estimate: each frame's own, frames before the first alignment the
+// first one (all nullopt when there is none).
+std::vector<std::optional<WorldAlignment>> LiveAlignments(
+    const std::vector<FrameEstimate>& estimates);
+
 // `estimates` in time order (world frame, with the live alignments); `track_starts`: the index of
 // the first estimate of each VIO track after the first (VioRunResult::track_starts); `used` /
 // `inflations` as GnssFusion records them (`inflations` in time order).

@@ -56,20 +56,7 @@ Trajectory EstimatesToTrajectory(const std::vector<FrameEstimate>& estimates,
 
 Trajectory EstimatesToEnuTrajectory(const std::vector<FrameEstimate>& estimates,
                                     const std::optional<Rigid3d>& body_from_cam) {
-  Trajectory t;
-  const auto first = std::find_if(estimates.begin(), estimates.end(), [](const FrameEstimate& e) {
-    return e.enu_from_world.has_value();
-  });
-  if (first == estimates.end()) return t;
-  t.Reserve(estimates.size(), true);
-  Rigid3d enu_from_world = first->enu_from_world->EnuFromWorld();
-  for (const FrameEstimate& e : estimates) {
-    if (e.enu_from_world) enu_from_world = e.enu_from_world->EnuFromWorld();
-    const Rigid3d world_from_x =
-        body_from_cam ? e.state.world_from_body * *body_from_cam : e.state.world_from_body;
-    t.Add(e.state.t_ns, enu_from_world * world_from_x);
-  }
-  return t;
+  return EstimatesToEnuTrajectory(estimates, LiveAlignments(estimates), body_from_cam);
 }
 
 namespace {
