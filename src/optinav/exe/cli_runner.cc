@@ -1,0 +1,67 @@
+#include "optinav/exe/cli_runner.h"
+
+#include <cstdio>
+
+#include "optinav/util/logging.h"
+
+namespace optinav::cli {
+
+UsageError::UsageError(const std::string& message, const std::string& flag)
+    : Error(message, {.field = flag}) {}
+
+void ThrowIfInvalid(const std::string& check_message, const std::string& flag) {
+  if (!check_message.empty()) throw UsageError(check_message, flag);
+}
+
+namespace {
+
+void AddLogLevel(CLI::App& app, std::string* level) {
+  app.add_option("--log-level", *level, "trace|debug|info|warn|error|off")->capture_default_str();
+  for (CLI::App* sub : app.get_subcommands({})) AddLogLevel(*sub, level);
+}
+
+void PrintError(const CLI::App& app, const std::string& message, bool usage) {
+  std::fprintf(stderr, "%s: error: %s\n", app.get_name().c_str(), message.c_str());
+  if (usage) std::fprintf(stderr, "run '%s --help' for the options\n", app.get_name().c_str());
+  std::fflush(stderr);
+}
+
+}  // namespace
+
+int RunCli(CLI::App& app, int argc, char** argv, const std::function<int()>& run,
+           const RunnerOptions& options) {
+  std::string level = options.default_log_level;
+  AddLogLevel(app, &level);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    PrintError(app, e.what(), true);
+    return 2;
+  }
+  try {
+    SetLogLevel(level);
+    return run();
+  } catch (const UsageError& e) {
+    PrintError(app, e.what(), true);
+    return 2;
+  } catch (const Error& e) {
+    // SetLogLevel throws a plain Error for an unknown level: that is a usage error too.
+    const bool usage = e.context().field == "--log-level";
+    PrintError(app, e.what(), usage);
+    return usage ? 2 : 1;
+  }
+}
+
+void OutputDirOptions::Add(CLI::App& app, const std::string& out_help,
+                           const std::string& force_help) {
+  app.add_option("--out", dir, out_help)->required();
+  app.add_flag("--force", force, force_help);
+}
+
+}  // namespace optinav::cli
