@@ -4,7 +4,8 @@
 //  - BM_OrientationCorrelation: NAIP 2009 map, 256x256 frames from 2017 (appearance change),
 //    prior within 250 m, heading known within +-10 deg; target median < 20 ms.
 // Each benchmark iteration localizes a fixed, seeded set of frames and reports the median and
-// per-stage medians as counters (ms). Data: ../shared/data (or $OPTINAV_SHARED_DATA).
+// per-stage medians as counters (ms; util/statistics.h: an even count gives the mean of the two
+// middle values). Data: ../shared/data (or $OPTINAV_SHARED_DATA).
 #include <algorithm>
 #include <cstdlib>
 #include <filesystem>
@@ -17,6 +18,7 @@
 #include "optinav/maploc/frame_synth.h"
 #include "optinav/maploc/locator.h"
 #include "optinav/sim/synthetic_ortho.h"
+#include "optinav/util/statistics.h"
 
 namespace {
 
@@ -25,11 +27,6 @@ using namespace optinav;
 
 using bench::SharedData;
 using bench::WorkDir;
-
-double Median(std::vector<double> v) {
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
-}
 
 struct Medians {
   std::vector<double> total, extraction, matching, estimation;

@@ -19,6 +19,7 @@
 #include "optinav/io/euroc_dataset.h"
 #include "optinav/vio/estimator.h"
 #include "optinav/vio/gnss_smoother.h"
+#include "optinav/vio/internal/frontend.h"
 
 namespace {
 

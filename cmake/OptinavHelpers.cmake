@@ -1,9 +1,15 @@
-# optinav_add_library(NAME layer SRCS ... DEPS ...): one library per layer folder.
+# optinav_add_library(NAME layer SRCS ... PUBLIC_DEPS ... PRIVATE_DEPS ...): one library per layer
+# folder. PUBLIC_DEPS are the libraries the layer's headers include (users need their include
+# directories too); PRIVATE_DEPS are used by the .cc files only. Static libraries still pass
+# private dependencies on to the link line, so only the include directories stop propagating.
+# scripts/check_layering.py checks that every layer a header includes is reachable through
+# PUBLIC_DEPS. DEPS is the older spelling of PUBLIC_DEPS.
 function(optinav_add_library)
-  cmake_parse_arguments(ARG "" "NAME" "SRCS;DEPS" ${ARGN})
+  cmake_parse_arguments(ARG "" "NAME" "SRCS;DEPS;PUBLIC_DEPS;PRIVATE_DEPS" ${ARGN})
   add_library(optinav_${ARG_NAME} STATIC ${ARG_SRCS})
   target_include_directories(optinav_${ARG_NAME} PUBLIC ${CMAKE_SOURCE_DIR}/src)
-  target_link_libraries(optinav_${ARG_NAME} PUBLIC ${ARG_DEPS})
+  target_link_libraries(optinav_${ARG_NAME} PUBLIC ${ARG_DEPS} ${ARG_PUBLIC_DEPS}
+                        PRIVATE ${ARG_PRIVATE_DEPS})
 endfunction()
 
 # optinav_add_test(NAME name LAYER layer SRCS ... DEPS ...): registers <layer>/<name> with CTest.

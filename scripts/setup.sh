@@ -18,7 +18,7 @@ while [[ $# -gt 0 ]]; do
 done
 
 PACKAGES=(
-  build-essential cmake pkg-config git ca-certificates
+  build-essential cmake pkg-config git ca-certificates python3
   libeigen3-dev libceres-dev libopencv-dev libgdal-dev gdal-bin libproj-dev proj-bin
   libyaml-cpp-dev libspdlog-dev libfmt-dev libcli11-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev libsqlite3-dev sqlite3 libtbb-dev libpng-dev

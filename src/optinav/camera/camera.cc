@@ -48,14 +48,19 @@ PinholeCamera PinholeCamera::FromHorizontalFov(int width, int height, double hfo
 void PinholeCamera::Validate() const {
   if (width <= 0 || height <= 0) {
     throw Error("camera resolution must be positive, got " + std::to_string(width) + "x" +
-                std::to_string(height));
+                    std::to_string(height),
+                {.field = "resolution"});
   }
   if (!(fx > 0) || !(fy > 0) || !std::isfinite(fx) || !std::isfinite(fy) || !std::isfinite(cx) ||
       !std::isfinite(cy)) {
-    throw Error("camera intrinsics must be finite with positive focal lengths");
+    throw Error("camera intrinsics must be finite with positive focal lengths",
+                {.field = "intrinsics"});
   }
   for (double k : coeffs) {
-    if (!std::isfinite(k)) throw Error("camera distortion coefficients must be finite");
+    if (!std::isfinite(k)) {
+      throw Error("camera distortion coefficients must be finite",
+                  {.field = "distortion_coefficients"});
+    }
   }
 }
 

@@ -34,7 +34,8 @@ struct PinholeCamera {
   // horizontal field of view (radians).
   static PinholeCamera FromHorizontalFov(int width, int height, double hfov_rad);
 
-  // Throws Error when the size or focal lengths are not positive/finite.
+  // Throws Error when the size or focal lengths are not positive/finite; its field names the
+  // sensor.yaml key to fix (resolution, intrinsics, distortion_coefficients).
   void Validate() const;
 
   Eigen::Matrix3d K() const;

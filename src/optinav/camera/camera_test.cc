@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "optinav/util/error.h"
+#include "optinav/util/testing.h"
 
 namespace optinav::camera {
 namespace {
@@ -75,12 +76,19 @@ TEST(Camera, ScaledKeepsRaysThroughPixelCentres) {
 
 TEST(Camera, BadIntrinsicsAreRejected) {
   PinholeCamera c;
-  EXPECT_THROW(c.Validate(), Error);
+  EXPECT_ERROR(c.Validate(), {.field = "resolution"}, "resolution must be positive, got 0x0");
   c = PinholeCamera::FromHorizontalFov(10, 10, 1.0);
   c.fx = std::nan("");
-  EXPECT_THROW(c.Validate(), Error);
-  EXPECT_THROW(PinholeCamera::FromHorizontalFov(10, 10, 4.0), Error);
-  EXPECT_THROW(ParseDistortionModel("pinhole-fancy"), Error);
+  EXPECT_ERROR(c.Validate(), {.field = "intrinsics"}, "intrinsics must be finite");
+  c = PinholeCamera::FromHorizontalFov(10, 10, 1.0);
+  c.coeffs[2] = std::nan("");
+  EXPECT_ERROR(c.Validate(), {.field = "distortion_coefficients"}, "must be finite");
+  // In-memory values: no file or field to name (ReadCameraCalibration adds them), the message
+  // says what is wrong.
+  EXPECT_ERROR(PinholeCamera::FromHorizontalFov(10, 10, 4.0), {},
+               "field of view must be in (0, 180) deg");
+  EXPECT_ERROR(ParseDistortionModel("pinhole-fancy"), {},
+               "unknown distortion model 'pinhole-fancy'");
   EXPECT_EQ(ParseDistortionModel("radtan"), DistortionModel::kRadialTangential);
 }
 

@@ -271,35 +271,6 @@ std::string PoseRelationUnit(PoseRelation r) {
   }
 }
 
-Statistics ComputeStatistics(const std::vector<double>& errors) {
-  if (errors.empty()) throw Error("no errors to summarise (empty input)");
-  Statistics s;
-  s.n = errors.size();
-  s.min = errors[0];
-  s.max = errors[0];
-  double sum = 0;
-  for (double e : errors) {
-    sum += e;
-    s.sse += e * e;
-    s.min = std::min(s.min, e);
-    s.max = std::max(s.max, e);
-  }
-  const double n = static_cast<double>(s.n);
-  s.mean = sum / n;
-  s.rmse = std::sqrt(s.sse / n);
-  double var = 0;
-  for (double e : errors) var += (e - s.mean) * (e - s.mean);
-  s.std = std::sqrt(var / n);
-  std::vector<double> sorted = errors;
-  const size_t mid = sorted.size() / 2;
-  std::nth_element(sorted.begin(), sorted.begin() + mid, sorted.end());
-  s.median = sorted[mid];
-  if (sorted.size() % 2 == 0) {
-    s.median = 0.5 * (s.median + *std::max_element(sorted.begin(), sorted.begin() + mid));
-  }
-  return s;
-}
-
 ErrorSeries ComputeApe(const Trajectory& ref, const Trajectory& est, PoseRelation relation) {
   if (ref.size() != est.size()) throw Error("APE needs synchronized trajectories of equal size");
   if (ref.empty()) throw Error("APE of empty trajectories");

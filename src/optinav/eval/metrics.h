@@ -11,7 +11,7 @@
 //  RPE           E_ij = (Q_i^-1 Q_j)^-1 (P_i^-1 P_j), pairs (i, j) chosen on the estimate.
 //  relations     trans: |t(E)|; rot: |R(E) - I|_F; full: |E - I|_F; angle_rad / angle_deg:
 //                the rotation angle of R(E).
-//  statistics    n, rmse, mean, median, std (population), min, max, sse.
+//  statistics    n, rmse, mean, median, std (population), min, max, sse (util/statistics.h).
 #pragma once
 
 #include <cstdint>
@@ -21,6 +21,7 @@
 
 #include "optinav/geometry/trajectory.h"
 #include "optinav/util/error.h"
+#include "optinav/util/statistics.h"
 
 namespace optinav::eval {
 
@@ -72,12 +73,10 @@ std::string PoseRelationName(PoseRelation relation);   // as on the command line
 std::string PoseRelationTitle(PoseRelation relation);  // "translation part", ...
 std::string PoseRelationUnit(PoseRelation relation);   // "m", "deg", "rad" or "" (unit-less)
 
-struct Statistics {
-  size_t n = 0;
-  double rmse = 0, mean = 0, median = 0, std = 0, min = 0, max = 0, sse = 0;
-};
-// Throws Error for an empty input.
-Statistics ComputeStatistics(const std::vector<double>& errors);
+// The project's one definition (util/statistics.h): evo's figures (median of an even count the
+// mean of the two middle values, population std), plus p95. Throws Error for an empty input.
+using Statistics = optinav::Statistics;
+using optinav::ComputeStatistics;
 
 // Errors of one metric, one per pose (APE) or per pair (RPE).
 struct ErrorSeries {

@@ -13,6 +13,14 @@ void ThrowIfInvalid(const std::string& check_message, const std::string& flag) {
   if (!check_message.empty()) throw UsageError(check_message, flag);
 }
 
+void ThrowIfCheckFailed(const std::string& check_message) {
+  if (check_message.empty()) return;
+  const size_t space = check_message.find(' ');
+  if (space == std::string::npos || check_message.rfind("--", 0) != 0)
+    throw UsageError(check_message, "");
+  throw UsageError(check_message.substr(space + 1), check_message.substr(0, space));
+}
+
 namespace {
 
 void AddLogLevel(CLI::App& app, std::string* level) {

@@ -28,6 +28,9 @@ class UsageError : public Error {
 
 // Throws UsageError naming `flag` when `check_message` (an Options::Check() result) is not empty.
 void ThrowIfInvalid(const std::string& check_message, const std::string& flag);
+// The same for a Check() message that starts with the flag at fault ("--runs must be >= 1"):
+// that flag becomes the error's field.
+void ThrowIfCheckFailed(const std::string& check_message);
 
 struct RunnerOptions {
   std::string default_log_level = "info";  // bench drivers default to "warn"

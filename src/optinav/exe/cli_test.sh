@@ -322,5 +322,89 @@ done
 a=$(grep '"rmse"' "$WORK/demo/ape_se3.json"); b=$(grep '"rmse"' "$WORK/again.json")
 [[ "$a" == "$b" ]] || fail "demo rmse ($a) differs from optinav eval ($b)"
 
+# --- One runner for every command (issue 17): --log-level everywhere, usage errors exit 2.
+# expect_exit CODE "description" "expected stderr substring" cmd...
+expect_exit() {
+  local code="$1" what="$2" needle="$3"; shift 3
+  "$@" >"$WORK/out.txt" 2>"$WORK/err.txt"
+  local rc=$?
+  [[ $rc -eq $code ]] || { fail "$what: exit $rc, expected $code"; cat "$WORK/err.txt"; return; }
+  grep -qF -- "$needle" "$WORK/err.txt" || { fail "$what: stderr lacks '$needle':"; cat "$WORK/err.txt"; }
+}
+# A bad level is refused by the runner (not as an unknown flag) before anything runs.
+for cmd in "eval ape $WORK/two.txt $WORK/two.txt" "map info $WORK/naip.db" \
+  "map build --ortho $NAIP/naip_20090818.tif --altitude 640 --hfov 90 --frame-size 256x256 --out $WORK/ll/x.db" \
+  "map locate --map $WORK/naip.db --image $WORK/f2017.png" \
+  "map render --ortho $NAIP/naip_20170827.tif --at 47.0186,-99.1526 --out $WORK/ll/r.png" \
+  "sim --out $WORK/ll/sim" "sim suite --out $WORK/ll/suite" "demo --out $WORK/ll/demo" \
+  "mission --map $WORK/naip.db --start $S --target $G --out $WORK/ll/m" \
+  "vio --dataset $MICRO --out $WORK/ll/v.tum" "bench gnss --out $WORK/ll/bg"; do
+  # shellcheck disable=SC2086
+  expect_exit 2 "$cmd: bad --log-level" "unknown log level 'loud'" "$BIN" $cmd --log-level loud
+  grep -qF -- "--log-level" "$WORK/err.txt" || fail "$cmd: bad --log-level message lacks the flag"
+done
+expect_exit 2 "top-level bad --log-level" "--log-level" "$BIN" --log-level loud map info "$WORK/naip.db"
+[[ ! -e "$WORK/ll" ]] || fail "a command with a bad --log-level wrote output"
+# A good level is accepted: the run goes on (to success, or to its own error with exit 1).
+expect_ok "eval --log-level" "$BIN" eval ape "$T/freiburg1_xyz-groundtruth.txt" \
+  "$T/freiburg1_xyz-rgbdslam.txt" --log-level warn
+expect_ok "map info --log-level" "$BIN" map info "$WORK/naip.db" --log-level error
+expect_ok "map --log-level before the subcommand" "$BIN" map --log-level warn info "$WORK/naip.db"
+expect_ok "map render --log-level" "$BIN" map render --ortho "$NAIP/naip_20170827.tif" \
+  --at 47.0186,-99.1526 --frame-size 64x64 --out "$WORK/r64.png" --log-level warn
+expect_ok "map locate --log-level" "$BIN" map locate --map "$WORK/naip.db" \
+  --image "$WORK/f2017.png" --prior 47.0195,-99.1510 --radius 250 --log-level off
+expect_ok "sim --log-level" "$BIN" sim --duration 0.1 --scale 0.1 --out "$WORK/simll" --log-level warn
+expect_ok "top-level --log-level" "$BIN" --log-level warn map info "$WORK/naip.db"
+expect_exit 1 "map build --log-level" "georeference" "$BIN" map build --ortho "$DATA/images/graf1.png" \
+  --altitude 100 --hfov 60 --frame-size 640x480 --out "$WORK/x.db" --log-level warn
+expect_exit 1 "sim suite --log-level" "not empty" "$BIN" sim suite --out "$WORK/suite" --log-level warn
+expect_exit 1 "mission --log-level" "not a valid optinav map database" "$BIN" mission \
+  --map "$WORK/short.txt" --start $S --target $G --out "$WORK/m3" --log-level warn
+expect_exit 1 "vio --log-level" "dataset folder not found" "$BIN" vio --dataset "$WORK/nope" \
+  --out "$WORK/x.tum" --log-level warn
+for cmd in "demo" "bench gnss"; do
+  # shellcheck disable=SC2086
+  "$BIN" $cmd --log-level warn --help >/dev/null 2>&1 || fail "$cmd --log-level --help"
+  "$BIN" $cmd --help 2>/dev/null | grep -q -- "--log-level" || fail "$cmd --help lacks --log-level"
+done
+for cmd in "eval ape" "map build" "map info" "map locate" "map render" "sim" "sim suite" \
+  "mission" "vio"; do
+  # shellcheck disable=SC2086
+  "$BIN" $cmd --help 2>/dev/null | grep -q -- "--log-level" || fail "$cmd --help lacks --log-level"
+done
+# Usage errors exit 2, run errors exit 1, one message format.
+expect_exit 2 "no command" "optinav: error:" "$BIN"
+expect_exit 2 "unknown command" "optinav: error: unknown command 'fly'" "$BIN" fly
+expect_exit 2 "map bad frame size" "optinav map: error: field '--frame-size'" "$BIN" map build \
+  --ortho "$NAIP/naip_20090818.tif" --altitude 100 --hfov 60 --frame-size 640by480 --out "$WORK/x.db"
+expect_exit 2 "map locate bad prior" "field '--prior'" "$BIN" map locate --map "$WORK/naip.db" \
+  --image "$WORK/f2017.png" --prior 47.0
+expect_exit 2 "sim bad scale exits 2" "optinav sim: error:" "$BIN" sim --scale 0 --out "$WORK/simx"
+expect_exit 1 "map info on a non-database exits 1" "optinav map: error:" "$BIN" map info "$WORK/short.txt"
+# sim refuses a non-empty folder (exit 1, naming it) and leaves its contents alone.
+mkdir -p "$WORK/simkeep"; echo "keep me" > "$WORK/simkeep/note.txt"
+expect_exit 1 "sim into a non-empty folder" "$WORK/simkeep" "$BIN" sim --duration 0.1 --scale 0.1 \
+  --out "$WORK/simkeep"
+[[ "$(ls "$WORK/simkeep")" == "note.txt" && "$(cat "$WORK/simkeep/note.txt")" == "keep me" ]] \
+  || fail "refused sim changed its output folder"
+expect_exit 1 "sim suite into a non-empty folder" "$WORK/simkeep" "$BIN" sim suite \
+  --duration 0.01 --scale 0.05 --out "$WORK/simkeep"
+[[ "$(ls "$WORK/simkeep")" == "note.txt" && "$(cat "$WORK/simkeep/note.txt")" == "keep me" ]] \
+  || fail "refused sim suite changed its output folder"
+
+# mission: a bad option is a usage error (exit 2, naming the flag); a missed target exits 3.
+expect_exit 2 "mission bad runs" "optinav mission: error: field '--runs'" "$BIN" mission \
+  --map "$WORK/naip.db" --start random --target random --runs 0 --out "$WORK/m3"
+expect_exit 2 "mission random start, fixed target" "field '--start'" "$BIN" mission \
+  --map "$WORK/naip.db" --start random --target $G --out "$WORK/m3"
+[[ ! -e "$WORK/m3" ]] || fail "a refused mission created its output folder"
+expect_exit 3 "mission missed target" "mission: 1 run(s)" "$BIN" mission --map "$WORK/naip.db" \
+  --start $S --target $G --speed 40 --step 2 --success-radius 0.001 --pictures none \
+  --out "$WORK/m3"
+grep -q '"reached": 0' "$WORK/m3/summary.json" || fail "missed mission summary.json reached"
+expect_exit 2 "demo bad duration" "optinav demo: error: field '--duration'" "$BIN" demo \
+  --duration 1 --out "$WORK/demo2"
+
 if [[ $failures -gt 0 ]]; then echo "$failures failure(s)"; exit 1; fi
 echo "all CLI checks passed"

@@ -13,12 +13,12 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include "optinav/app/evaluation.h"
+#include "optinav/app/mission_experiment.h"
+#include "optinav/exe/cli_runner.h"
 #include "optinav/exe/commands.h"
-#include "optinav/exe/evaluation.h"
-#include "optinav/exe/mission_experiment.h"
 #include "optinav/maploc/map_db.h"
 #include "optinav/sim/synthetic_ortho.h"
-#include "optinav/util/logging.h"
 
 namespace optinav {
 namespace {
@@ -28,7 +28,7 @@ struct DemoOptions {
   unsigned seed = 42;
   double duration_s = 120.0;
   int mission_runs = 3;
-  // Check(): empty when valid, else the offending field.
+  // Check(): empty when valid, else a message that starts with the flag at fault.
   std::string Check() const {
     if (out_dir.empty()) return "--out must not be empty";
     if (!(duration_s >= 10 && duration_s <= 3600)) return "--duration must be in [10, 3600] s";
@@ -99,20 +99,70 @@ int RunDemoMissions(const DemoOptions& opt) {
   const maploc::MapDatabase db = maploc::BuildMapDatabase(ortho, bo, map);
   std::printf("  wrote %s (1024 x 1024 px at 4 m/px) and %s (%zu tiles, %zu ORB features)\n\n",
               ortho.c_str(), map.c_str(), db.tiles.size(), db.FeatureCount());
-  MissionExperiment m;
-  m.map = map;
-  m.start = m.target = "random";
+  app::MissionExperimentOptions m;
+  m.map_path = map;  // start and target unset: seeded random legs
   m.min_distance_m = 2500;
   m.margin_m = 250;
   m.runs = opt.mission_runs;
   m.weather = "fog:25";
-  m.out = (dir / "mission").string();
+  m.out_dir = (dir / "mission").string();
   m.force = true;  // the demo's own folder, rewritten on every run
-  m.o.seed = opt.seed;
-  const int rc = RunMissionExperiment(m);
+  m.mission.seed = opt.seed;
+  const app::MissionExperimentResult r =
+      app::RunMissionExperiment(m, [](const app::MissionRunOutcome& run) {
+        if (run.run == 1) std::fputs(app::FormatMissionRunHeader().c_str(), stdout);
+        std::fputs(app::FormatMissionRunRow(run).c_str(), stdout);
+        std::fflush(stdout);
+      });
+  std::fputs(app::FormatMissionSummary(r).c_str(), stdout);
   std::printf("  pictures: %s/summary.png (all runs), %s/run_001/path.png (one run)\n",
-              m.out.c_str(), m.out.c_str());
-  return rc;
+              m.out_dir.c_str(), m.out_dir.c_str());
+  return r.all_reached() ? 0 : 3;
+}
+
+// The flight, its drifting estimate in their usual formats, and three evaluations of them.
+void RunDemoEvaluation(const DemoOptions& opt) {
+  namespace fs = std::filesystem;
+  fs::create_directories(opt.out_dir);
+  const Trajectory gt = MakeGroundTruth(opt.duration_s);
+  const Trajectory est = MakeDriftingEstimate(gt, opt.seed);
+  const std::string gt_path = (fs::path(opt.out_dir) / "groundtruth.csv").string();
+  const std::string est_path = (fs::path(opt.out_dir) / "estimate.tum").string();
+  io::WriteTrajectory(gt_path, gt, io::TrajectoryFormat::kEuroc);
+  io::WriteTrajectory(est_path, est, io::TrajectoryFormat::kTum);
+  std::printf(
+      "optinav demo: %.0f s figure-eight flight, %.0f m path; estimate with yaw drift, "
+      "1%% scale error and velocity random walk (seed %u)\n",
+      opt.duration_s, gt.PathLength(), opt.seed);
+  std::printf("  wrote %s (EuRoC csv, %zu poses) and %s (TUM, %zu poses)\n\n", gt_path.c_str(),
+              gt.size(), est_path.c_str(), est.size());
+
+  struct Job {
+    const char* name;
+    app::EvaluationSettings::Metric metric;
+    eval::AlignMode align;
+  };
+  double ape_se3_rmse = 0;
+  for (const Job& job :
+       {Job{"ape_se3", app::EvaluationSettings::Metric::kApe, eval::AlignMode::kSe3},
+        Job{"ape_posyaw", app::EvaluationSettings::Metric::kApe, eval::AlignMode::kPosYaw},
+        Job{"rpe_10m", app::EvaluationSettings::Metric::kRpe, eval::AlignMode::kSe3}}) {
+    app::EvaluationSettings st;
+    st.metric = job.metric;
+    st.ref_path = gt_path;
+    st.est_path = est_path;
+    st.alignment.mode = job.align;
+    st.rpe = {.delta = 10, .unit = eval::DeltaUnit::kMeters};
+    st.json_path = (fs::path(opt.out_dir) / (std::string(job.name) + ".json")).string();
+    st.plot_path = (fs::path(opt.out_dir) / (std::string(job.name) + ".svg")).string();
+    const app::EvaluationOutcome o = app::RunEvaluation(st);
+    if (std::string(job.name) == "ape_se3") ape_se3_rmse = o.series.stats.rmse;
+    std::printf("[%s] ", job.name);
+    std::fputs(app::FormatEvaluationTable(st, o).c_str(), stdout);
+    std::printf("  -> %s, %s\n\n", st.json_path.c_str(), st.plot_path.c_str());
+  }
+  std::printf("summary: APE rmse after SE(3) alignment %.3f m = %.2f %% of the %.0f m path\n",
+              ape_se3_rmse, 100.0 * ape_se3_rmse / gt.PathLength(), gt.PathLength());
 }
 
 }  // namespace
@@ -125,63 +175,11 @@ int RunDemo(int argc, char** argv) {
   app.add_option("--duration", opt.duration_s, "flight duration (s)")->capture_default_str();
   app.add_option("--mission-runs", opt.mission_runs, "GNSS-denied missions to fly (0: none)")
       ->capture_default_str();
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
-  }
-  if (const std::string msg = opt.Check(); !msg.empty()) {
-    spdlog::error("{}", msg);
-    return 2;
-  }
-  try {
-    namespace fs = std::filesystem;
-    fs::create_directories(opt.out_dir);
-    const Trajectory gt = MakeGroundTruth(opt.duration_s);
-    const Trajectory est = MakeDriftingEstimate(gt, opt.seed);
-    const std::string gt_path = (fs::path(opt.out_dir) / "groundtruth.csv").string();
-    const std::string est_path = (fs::path(opt.out_dir) / "estimate.tum").string();
-    io::WriteTrajectory(gt_path, gt, io::TrajectoryFormat::kEuroc);
-    io::WriteTrajectory(est_path, est, io::TrajectoryFormat::kTum);
-    std::printf(
-        "optinav demo: %.0f s figure-eight flight, %.0f m path; estimate with yaw drift, "
-        "1%% scale error and velocity random walk (seed %u)\n",
-        opt.duration_s, gt.PathLength(), opt.seed);
-    std::printf("  wrote %s (EuRoC csv, %zu poses) and %s (TUM, %zu poses)\n\n", gt_path.c_str(),
-                gt.size(), est_path.c_str(), est.size());
-
-    struct Job {
-      const char* name;
-      EvaluationSettings::Metric metric;
-      eval::AlignMode align;
-    };
-    double ape_se3_rmse = 0;
-    for (const Job& job :
-         {Job{"ape_se3", EvaluationSettings::Metric::kApe, eval::AlignMode::kSe3},
-          Job{"ape_posyaw", EvaluationSettings::Metric::kApe, eval::AlignMode::kPosYaw},
-          Job{"rpe_10m", EvaluationSettings::Metric::kRpe, eval::AlignMode::kSe3}}) {
-      EvaluationSettings st;
-      st.metric = job.metric;
-      st.ref_path = gt_path;
-      st.est_path = est_path;
-      st.alignment.mode = job.align;
-      st.rpe = {.delta = 10, .unit = eval::DeltaUnit::kMeters};
-      st.json_path = (fs::path(opt.out_dir) / (std::string(job.name) + ".json")).string();
-      st.plot_path = (fs::path(opt.out_dir) / (std::string(job.name) + ".svg")).string();
-      const EvaluationOutcome o = RunEvaluation(st);
-      if (std::string(job.name) == "ape_se3") ape_se3_rmse = o.series.stats.rmse;
-      std::printf("[%s] ", job.name);
-      std::fputs(FormatEvaluationTable(st, o).c_str(), stdout);
-      std::printf("  -> %s, %s\n\n", st.json_path.c_str(), st.plot_path.c_str());
-    }
-    std::printf("summary: APE rmse after SE(3) alignment %.3f m = %.2f %% of the %.0f m path\n",
-                ape_se3_rmse, 100.0 * ape_se3_rmse / gt.PathLength(), gt.PathLength());
-    if (opt.mission_runs > 0) return RunDemoMissions(opt);
-  } catch (const Error& e) {
-    spdlog::error("{}", e.what());
-    return 1;
-  }
-  return 0;
+  return cli::RunCli(app, argc, argv, [&] {
+    cli::ThrowIfCheckFailed(opt.Check());
+    RunDemoEvaluation(opt);
+    return opt.mission_runs > 0 ? RunDemoMissions(opt) : 0;
+  });
 }
 
 }  // namespace optinav

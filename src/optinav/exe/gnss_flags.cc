@@ -17,8 +17,9 @@ void AddGnssFusionFlags(CLI::App& app, GnssFusionFlags* f) {
       ->capture_default_str();
   app.add_option("--gnss-norm-param", f->norm_param,
                  "norm parameter in sigmas (default huber 2.5, tukey 5)");
-  app.add_option("--gnss-gate", f->gate,
-                 fmt::format("chi-square gate, 3 DoF (default {:g} = 99.9 %; 0: off)", d.gate_chi2));
+  app.add_option(
+      "--gnss-gate", f->gate,
+      fmt::format("chi-square gate, 3 DoF (default {:g} = 99.9 %; 0: off)", d.gate_chi2));
   app.add_option("--gnss-init-yaw-sigma", f->init_yaw_sigma_deg,
                  fmt::format("yaw sigma (deg) the ENU alignment waits for (default {:g}; smaller: "
                              "a later but steadier alignment)",
@@ -51,27 +52,28 @@ void GnssFusionFlags::ApplyTo(vio::GnssFusionOptions* g) const {
   const std::optional<vio::GnssTimeMode> time_mode = vio::ParseGnssTimeMode(time);
   if (!time_mode) throw UsageError("unknown mode '" + time + "' (exact|frame)", "--gnss-time");
   g->time_mode = *time_mode;
-  if (norm_param != -1) {
-    if (!(norm_param > 0))
-      throw UsageError(fmt::format("must be > 0, got {}", norm_param), "--gnss-norm-param");
-    g->norm_parameter = norm_param;
+  if (norm_param) {
+    if (!(*norm_param > 0))
+      throw UsageError(fmt::format("must be > 0, got {}", *norm_param), "--gnss-norm-param");
+    g->norm_parameter = *norm_param;
   }
-  if (gate != -1) {
-    if (!(gate >= 0)) throw UsageError(fmt::format("must be >= 0, got {}", gate), "--gnss-gate");
-    g->gate_chi2 = gate;
+  if (gate) {
+    if (!(*gate >= 0)) throw UsageError(fmt::format("must be >= 0, got {}", *gate), "--gnss-gate");
+    g->gate_chi2 = *gate;
   }
-  if (init_distance != -1) g->init_min_distance_m = init_distance;
-  if (init_yaw_sigma_deg != -1) {
-    if (!(init_yaw_sigma_deg > 0))
+  if (init_distance) g->init_min_distance_m = *init_distance;
+  if (init_yaw_sigma_deg) {
+    if (!(*init_yaw_sigma_deg > 0))
       throw UsageError("must be > 0 (degrees)", "--gnss-init-yaw-sigma");
-    g->init_max_yaw_sigma_rad = init_yaw_sigma_deg * M_PI / 180;
+    g->init_max_yaw_sigma_rad = *init_yaw_sigma_deg * M_PI / 180;
   }
-  if (factor_scale != -1) g->factor_sigma_scale = factor_scale;
-  if (smooth_walk_scale != -1) g->smooth_walk_scale = smooth_walk_scale;
+  if (factor_scale) g->factor_sigma_scale = *factor_scale;
+  if (smooth_walk_scale) g->smooth_walk_scale = *smooth_walk_scale;
   g->smooth = !no_smooth;
   try {
     if (!drift_test.empty()) {
-      const std::vector<double> v = ParseNumbers(drift_test, 2, "SAMPLES,CHI2", "--gnss-drift-test");
+      const std::vector<double> v =
+          ParseNumbers(drift_test, 2, "SAMPLES,CHI2", "--gnss-drift-test");
       if (v[0] != std::floor(v[0]) || !(v[0] >= 1))
         throw UsageError(fmt::format("SAMPLES must be a whole number >= 1, got {}", v[0]),
                          "--gnss-drift-test");
@@ -79,7 +81,8 @@ void GnssFusionFlags::ApplyTo(vio::GnssFusionOptions* g) const {
       g->drift_test_chi2 = v[1];
     }
     if (!walk.empty()) {
-      const std::vector<double> v = ParseNumbers(walk, 2, "M_PER_SQRT_M,RAD_PER_SQRT_M", "--gnss-walk");
+      const std::vector<double> v =
+          ParseNumbers(walk, 2, "M_PER_SQRT_M,RAD_PER_SQRT_M", "--gnss-walk");
       if (v[0] < 0 || v[1] < 0) throw UsageError("must be >= 0", "--gnss-walk");
       g->alignment_walk_m_per_sqrt_m = v[0];
       g->alignment_walk_rad_per_sqrt_m = v[1];

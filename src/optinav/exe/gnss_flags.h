@@ -2,6 +2,7 @@
 // both commands spell, document and check them the same way).
 #pragma once
 
+#include <optional>
 #include <string>
 
 #include <CLI/CLI.hpp>
@@ -10,11 +11,11 @@
 
 namespace optinav::cli {
 
-// Raw flag values; "unset" values leave the GnssFusionOptions default alone.
+// Raw flag values; flags not given leave the GnssFusionOptions default alone.
 struct GnssFusionFlags {
   std::string time = "exact";
-  double norm_param = -1, gate = -1, init_distance = -1, init_yaw_sigma_deg = -1,
-         factor_scale = -1, smooth_walk_scale = -1;
+  std::optional<double> norm_param, gate, init_distance, init_yaw_sigma_deg, factor_scale,
+      smooth_walk_scale;
   std::string walk, drift_test;
   bool no_smooth = false;
 

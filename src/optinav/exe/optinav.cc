@@ -1,9 +1,13 @@
-// The single optinav binary: `optinav <command> [options]`, one Run<Command> per subcommand.
-#include <cstdio>
-#include <cstdlib>
-#include <cstring>
+// The single optinav binary: `optinav [--log-level L] <command> [options]`, one Run<Command> per
+// command. The top level goes through cli::RunCli like every command (same messages, exit 2 for
+// a missing or unknown command); everything from the command name on is the command's.
 #include <string>
+#include <vector>
 
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include "optinav/exe/cli_runner.h"
 #include "optinav/exe/commands.h"
 #include "optinav/util/logging.h"
 
@@ -17,7 +21,7 @@ struct Command {
 
 constexpr Command kCommands[] = {
     {"eval", optinav::RunEval, "evaluate trajectories: APE and RPE exactly as evo defines them"},
-    {"map", optinav::RunMap, "orthophoto map databases: build, info, locate frames"},
+    {"map", optinav::RunMap, "orthophoto map databases: build, info, locate frames, render frames"},
     {"sim", optinav::RunSim, "simulate stereo + IMU + GNSS sequences with weather (EuRoC, AirSim)"},
     {"mission", optinav::RunMission,
      "GNSS-denied missions to a target over an orthophoto map (30-run experiments)"},
@@ -26,38 +30,49 @@ constexpr Command kCommands[] = {
     {"demo", optinav::RunDemo, "run the end-to-end demo on generated data"},
 };
 
-void PrintUsage(std::FILE* out) {
-  std::fprintf(out, "optinav %s: navigation when GNSS is jammed, spoofed or lost\n\n",
-               OPTINAV_VERSION);
-  std::fprintf(out,
-               "usage: optinav <command> [options]   (optinav <command> --help)\n\ncommands:\n");
-  for (const Command& c : kCommands) std::fprintf(out, "  %-10s %s\n", c.name, c.help);
-  std::fprintf(out, "  %-10s %s\n", "version", "print the version");
+std::string CommandList() {
+  std::string s = "commands (optinav <command> --help):\n";
+  for (const Command& c : kCommands) s += fmt::format("  {:<10} {}\n", c.name, c.help);
+  return s + fmt::format("  {:<10} {}\n", "version", "print the version");
+}
+
+// Runs the command named first in `args` with the rest; a --log-level given before the command
+// (`level`, empty when not given) is passed on to it.
+int Dispatch(const CLI::App& app, std::vector<std::string> args, const std::string& level) {
+  if (args.empty()) throw optinav::cli::UsageError("give a command (see the list in --help)", "");
+  const std::string name = args.front();
+  if (name == "help") {
+    std::printf("%s", app.help().c_str());
+    return 0;
+  }
+  if (name == "version") {
+    std::printf("optinav %s\n", OPTINAV_VERSION);
+    return 0;
+  }
+  for (const Command& c : kCommands) {
+    if (name != c.name) continue;
+    args.front() = std::string("optinav ") + c.name;  // the command's program name
+    if (!level.empty()) args.insert(args.end(), {"--log-level", level});
+    std::vector<char*> argv;
+    for (std::string& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    return c.run(static_cast<int>(args.size()), argv.data());
+  }
+  throw optinav::cli::UsageError(fmt::format("unknown command '{}'", name), "");
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
   optinav::InitLogging();
-  if (argc < 2 || !std::strcmp(argv[1], "--help") || !std::strcmp(argv[1], "-h") ||
-      !std::strcmp(argv[1], "help")) {
-    PrintUsage(argc < 2 ? stderr : stdout);
-    return argc < 2 ? EXIT_FAILURE : EXIT_SUCCESS;
-  }
-  const std::string name = argv[1];
-  if (name == "version" || name == "--version") {
-    std::printf("optinav %s\n", OPTINAV_VERSION);
-    return EXIT_SUCCESS;
-  }
-  for (const Command& c : kCommands) {
-    if (name == c.name) {
-      // The subcommand sees "optinav <command>" as its program name.
-      std::string program = std::string("optinav ") + c.name;
-      argv[1] = program.data();
-      return c.run(argc - 1, argv + 1);
-    }
-  }
-  std::fprintf(stderr, "optinav: unknown command '%s'\n\n", name.c_str());
-  PrintUsage(stderr);
-  return 2;
+  CLI::App app{
+      fmt::format("optinav {}: navigation when GNSS is jammed, spoofed or lost", OPTINAV_VERSION),
+      "optinav"};
+  app.prefix_command();  // the first positional (the command) and all after it are left over
+  app.set_version_flag("--version", std::string("optinav ") + OPTINAV_VERSION);
+  app.footer(CommandList());
+  return optinav::cli::RunCli(app, argc, argv, [&] {
+    const CLI::Option* level = app.get_option("--log-level");
+    return Dispatch(app, app.remaining(), level->count() ? level->as<std::string>() : "");
+  });
 }

@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include "optinav/util/testing.h"
+
 namespace optinav::geo {
 namespace {
 
@@ -44,8 +46,8 @@ TEST(CrsTransform, WebMercatorAndGeographicAxisOrder) {
 }
 
 TEST(CrsTransform, UnknownCrsIsAnError) {
-  EXPECT_THROW(CrsTransform("EPSG:999999"), Error);
-  EXPECT_THROW(CrsTransform("not a crs"), Error);
+  EXPECT_ERROR(CrsTransform("EPSG:999999"), {.field = "crs"}, "unknown CRS (PROJ: ");
+  EXPECT_ERROR(CrsTransform("not a crs"), {.field = "crs"}, "): not a crs");
 }
 
 TEST(GeoTransform, RotationTermsRoundTrip) {
@@ -69,7 +71,7 @@ TEST(GeoTransform, RotationTermsRoundTrip) {
   EXPECT_NEAR(dir.norm(), 1.0, 1e-12);
   GeoTransform singular;
   singular.c = {0, 1, 1, 0, 1, 1};
-  EXPECT_THROW(singular.CrsToPixel({1, 1}), Error);
+  EXPECT_ERROR(singular.CrsToPixel({1, 1}), {}, "singular geotransform");
 }
 
 TEST(Geodesic, KnownDistanceAndRoundTrip) {

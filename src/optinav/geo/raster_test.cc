@@ -110,16 +110,14 @@ TEST(GeoRaster, BadFilesAreClearErrors) {
     std::string bytes((std::istreambuf_iterator<char>(in)), {});
     std::ofstream(cut, std::ios::binary).write(bytes.data(), bytes.size() / 3);
   }
-  EXPECT_THROW(
-      {
-        const GeoRaster r = GeoRaster::Open(cut);
-        r.ReadGray(0, 0, 512, 512);
-      },
-      Error);
-  EXPECT_THROW(GeoRaster::Open((dir / "missing.tif").string()), Error);
+  EXPECT_ERROR(GeoRaster::Open(cut).ReadGray(0, 0, 512, 512), {.file = cut},
+               "read failed (truncated or corrupt file?)");
+  EXPECT_ERROR(GeoRaster::Open((dir / "missing.tif").string()), {.file = "missing.tif"},
+               "raster file not found");
   const std::string junk = testing::WriteFile(dir / "junk.tif", "this is not a tiff");
-  EXPECT_THROW(GeoRaster::Open(junk), Error);
-  EXPECT_THROW(WriteGeoTiff((dir / "x.tif").string(), noise, gt, "EPSG:999999"), Error);
+  EXPECT_ERROR(GeoRaster::Open(junk), {.file = junk}, "cannot open as a raster");
+  EXPECT_ERROR(WriteGeoTiff((dir / "x.tif").string(), noise, gt, "EPSG:999999"), {.file = "x.tif"},
+               "unknown CRS 'EPSG:999999'");
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "optinav/util/error.h"
+#include "optinav/util/testing.h"
 
 namespace optinav {
 namespace {
@@ -56,11 +57,15 @@ TEST(Umeyama, FirstNPairsOnly) {
 
 TEST(Umeyama, RejectsTooFewAndDegenerate) {
   const auto src = RandomPoints(2, 4);
-  EXPECT_THROW(UmeyamaAlignment(src, src, false), Error);
+  // In-memory points: no file or field, the message names the count or the degeneracy.
+  EXPECT_ERROR(UmeyamaAlignment(src, src, false), {},
+               "alignment needs at least 3 pose pairs, got 2");
   std::vector<Eigen::Vector3d> line;
   for (int i = 0; i < 10; ++i) line.emplace_back(i, 0, 0);
-  EXPECT_THROW(UmeyamaAlignment(line, line, false), Error);
-  EXPECT_THROW(UmeyamaAlignment(RandomPoints(4, 1), RandomPoints(5, 1), false), Error);
+  EXPECT_ERROR(UmeyamaAlignment(line, line, false), {},
+               "degenerate point configuration (covariance rank 1)");
+  EXPECT_ERROR(UmeyamaAlignment(RandomPoints(4, 1), RandomPoints(5, 1), false), {},
+               "same number of source and target points (4 vs 5)");
 }
 
 TEST(PositionYaw, RecoversYawAndTranslationOnly) {

@@ -4,6 +4,7 @@
 #include <map>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "optinav/io/text_parse.h"
 
@@ -182,6 +183,45 @@ AirsimRecording ReadAirsimRecording(const std::string& path, const AirsimReadOpt
     }
   }
   return out;
+}
+
+void WriteAirsimRecording(const std::string& dir, const AirsimRecording& recording) {
+  // AirSim stamps are milliseconds: round to the nearest.
+  auto ms = [](int64_t t_ns) { return (t_ns + 500'000) / 1'000'000; };
+  std::string rec =
+      "VehicleName\tTimeStamp\tPOS_X\tPOS_Y\tPOS_Z\tQ_W\tQ_X\tQ_Y\tQ_Z\tThrottle\t"
+      "Steering\tBrake\tGear\tHandbrake\tRPM\tSpeed\tImageFile\n";
+  const std::string rec_path = (fs::path(dir) / "airsim_rec.txt").string();
+  for (size_t i = 0; i < recording.records.size(); ++i) {
+    const AirsimRecord& r = recording.records[i];
+    if (!r.world_from_body) {
+      throw Error(fmt::format("record {} (t = {} ns) has no pose to write", i, r.t_ns),
+                  {.file = rec_path, .field = "POS_X"});
+    }
+    const Rigid3d ned_body = NedFrdFromEnuFlu(*r.world_from_body);
+    const Eigen::Vector4d q = QuaternionToWxyz(ned_body.rotation);
+    rec += fmt::format(
+        "{}\t{}\t{:.6f}\t{:.6f}\t{:.6f}\t{:.9f}\t{:.9f}\t{:.9f}\t{:.9f}\t{:.3f}\t{:.3f}\t{:.3f}\t{}"
+        "\t"
+        "{}\t{:.1f}\t{:.4f}\t{}\n",
+        r.vehicle, ms(r.t_ns), ned_body.translation.x(), ned_body.translation.y(),
+        ned_body.translation.z(), q[0], q[1], q[2], q[3], r.throttle, r.steering, r.brake, r.gear,
+        r.handbrake ? 1 : 0, r.rpm, r.speed_m_s, fmt::join(r.image_paths, ";"));
+  }
+  std::string cam_info;
+  if (!recording.left_camera.empty()) {
+    cam_info = "TimeStamp,POS_X,POS_Y,POS_Z,Q_W,Q_X,Q_Y,Q_Z\n";
+    for (const AirsimCameraPose& c : recording.left_camera) {
+      const Rigid3d ned_cam = NedAirsimCameraFromEnuOptical(c.world_from_cam);
+      const Eigen::Vector4d q = QuaternionToWxyz(ned_cam.rotation);
+      cam_info += fmt::format("{},{:.6f},{:.6f},{:.6f},{:.9f},{:.9f},{:.9f},{:.9f}\n", ms(c.t_ns),
+                              ned_cam.translation.x(), ned_cam.translation.y(),
+                              ned_cam.translation.z(), q[0], q[1], q[2], q[3]);
+    }
+  }
+  WriteFileAtomically(rec_path, rec);
+  if (!cam_info.empty())
+    WriteFileAtomically((fs::path(dir) / "camera_info.csv").string(), cam_info);
 }
 
 }  // namespace optinav::io

@@ -56,6 +56,13 @@ struct AirsimReadOptions {
 // timestamps going backwards, a listed image that does not exist).
 AirsimRecording ReadAirsimRecording(const std::string& path, const AirsimReadOptions& options = {});
 
+// Writes <dir>/airsim_rec.txt (the car recorder's 17 columns) and, when `recording.left_camera`
+// is not empty, <dir>/camera_info.csv, atomically; the inverse of ReadAirsimRecording. Records
+// need world_from_body (ENU / FLU; converted to NED here) and their image_paths are written as
+// given (names relative to <dir>/images). Stamps are rounded to milliseconds, positions written
+// with 6 decimals (µm), quaternions with 9. Throws Error naming the record without a pose.
+void WriteAirsimRecording(const std::string& dir, const AirsimRecording& recording);
+
 // Frame conversions used by the reader and by writers of the format.
 // NED_from_FRD (AirSim vehicle) <-> ENU_from_FLU (project body).
 Rigid3d EnuFluFromNedFrd(const Rigid3d& ned_from_frd);

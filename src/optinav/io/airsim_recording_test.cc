@@ -73,5 +73,47 @@ TEST(AirsimRecording, BadInputNamesFileLineAndField) {
   expect("TimeStamp\tPOS_X\tImageFile\n5\t1\ta.png\n", "not all of POS_X");
 }
 
+TEST(AirsimRecording, WriterRoundTripsThroughTheReader) {
+  const auto dir = testing::MakeTempDir("airsim_write");
+  AirsimRecording rec;
+  const Rigid3d pose(Eigen::Quaterniond(0.8, 0.1, -0.3, 0.5).normalized(),
+                     Eigen::Vector3d(12.5, -3.25, 1.9));
+  for (int k = 0; k < 2; ++k) {
+    rec.records.push_back({.t_ns = 1'700'000'000'000'000'000 + k * 30'000'000,
+                           .vehicle = "PhysXCar",
+                           .world_from_body = pose,
+                           .throttle = 0.7,
+                           .steering = -0.25,
+                           .rpm = 1250.5,
+                           .speed_m_s = 2.5,
+                           .gear = 1,
+                           .image_paths = {"l.png", "r.png"}});
+    rec.left_camera.push_back({.t_ns = rec.records.back().t_ns, .world_from_cam = pose});
+  }
+  WriteAirsimRecording(dir.string(), rec);
+  const AirsimRecording back = ReadAirsimRecording(dir.string(), {.check_images_exist = false});
+  ASSERT_EQ(back.records.size(), 2u);
+  ASSERT_EQ(back.left_camera.size(), 2u);
+  const AirsimRecord& r = back.records[1];
+  EXPECT_EQ(r.t_ns, 1'700'000'000'030'000'000);  // whole milliseconds survive exactly
+  EXPECT_EQ(r.vehicle, "PhysXCar");
+  ASSERT_TRUE(r.world_from_body.has_value());
+  // NED on disk, ENU / FLU in memory: back to the same pose (6 and 9 decimals on disk).
+  EXPECT_LT((r.world_from_body->translation - pose.translation).norm(), 1e-6);
+  EXPECT_LT(r.world_from_body->rotation.angularDistance(pose.rotation), 1e-8);
+  EXPECT_LT(back.left_camera[1].world_from_cam.rotation.angularDistance(pose.rotation), 1e-8);
+  EXPECT_DOUBLE_EQ(r.throttle, 0.7);
+  EXPECT_DOUBLE_EQ(r.steering, -0.25);
+  EXPECT_DOUBLE_EQ(r.rpm, 1250.5);
+  EXPECT_EQ(r.gear, 1);
+  ASSERT_EQ(r.image_paths.size(), 2u);
+  EXPECT_EQ(r.image_paths[1], (dir / "images" / "r.png").string());
+
+  rec.records[0].world_from_body.reset();
+  const std::string rec_path = (dir / "airsim_rec.txt").string();
+  EXPECT_ERROR(WriteAirsimRecording(dir.string(), rec), {.file = rec_path, .field = "POS_X"},
+               "record 0 (t = 1700000000000000000 ns) has no pose to write");
+}
+
 }  // namespace
 }  // namespace optinav::io

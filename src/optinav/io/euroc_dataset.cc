@@ -129,64 +129,33 @@ std::vector<ImageEntry> ReadImageList(const std::string& data_csv, const std::st
   return out;
 }
 
-namespace {
-
-// Reads a csv of "timestamp [ns], v1, v2, ..." rows with strictly increasing stamps: the first
-// N values after the stamp (named field_names[1..N]) go to `row(t_ns, values)`. With
-// `extra_ok`, further columns are ignored; without, the count must be exact.
-template <size_t N, typename RowFn>
-void ReadTimedCsv(const std::string& data_csv, const char* const (&field_names)[N + 1],
-                  bool extra_ok, const char* layout, RowFn row) {
+std::vector<ImuSample> ReadImuCsv(const std::string& data_csv) {
+  static constexpr const char* kFields[] = {"timestamp", "w_x", "w_y", "w_z", "a_x", "a_y", "a_z"};
   const std::string text = ReadFileToString(data_csv);
   LineCursor cursor(text);
   std::string_view line;
   std::vector<std::string_view> f;
-  double values[N];
-  int64_t prev = 0;
-  bool first = true;
+  double v[6];
+  std::vector<ImuSample> out;
   while (cursor.Next(&line)) {
     if (IsCommentOrBlank(line)) continue;
     ErrorContext ctx{.file = data_csv, .line = cursor.line_number()};
     SplitFields(line, ',', &f);
-    if (f.size() < N + 1 || (!extra_ok && f.size() != N + 1)) {
-      throw Error(fmt::format("expected {}'{}', found {} fields", extra_ok ? "at least " : "",
-                              layout, f.size()),
-                  ctx);
+    if (f.size() != 7) {
+      throw Error(
+          fmt::format("expected 'timestamp, wx, wy, wz, ax, ay, az', found {} fields", f.size()),
+          ctx);
     }
-    ctx.field = field_names[0];
+    ctx.field = kFields[0];
     const int64_t t = ParseInt64(f[0], ctx);
-    for (size_t k = 0; k < N; ++k) {
-      ctx.field = field_names[k + 1];
-      values[k] = ParseFiniteDouble(f[k + 1], ctx);
+    for (size_t k = 0; k < 6; ++k) {
+      ctx.field = kFields[k + 1];
+      v[k] = ParseFiniteDouble(f[k + 1], ctx);
     }
-    ctx.field = field_names[0];
-    if (!first) CheckIncreasing(prev, t, ctx);
-    first = false;
-    prev = t;
-    row(t, values);
+    ctx.field = kFields[0];
+    if (!out.empty()) CheckIncreasing(out.back().t_ns, t, ctx);
+    out.push_back({t, Eigen::Vector3d(v[0], v[1], v[2]), Eigen::Vector3d(v[3], v[4], v[5])});
   }
-}
-
-}  // namespace
-
-std::vector<ImuSample> ReadImuCsv(const std::string& data_csv) {
-  static constexpr const char* kFields[] = {"timestamp", "w_x", "w_y", "w_z", "a_x", "a_y", "a_z"};
-  std::vector<ImuSample> out;
-  ReadTimedCsv<6>(
-      data_csv, kFields, /*extra_ok=*/false, "timestamp, wx, wy, wz, ax, ay, az",
-      [&](int64_t t, const double* v) {
-        out.push_back({t, Eigen::Vector3d(v[0], v[1], v[2]), Eigen::Vector3d(v[3], v[4], v[5])});
-      });
-  return out;
-}
-
-std::vector<GnssPositionSample> ReadGnssCsv(const std::string& data_csv) {
-  static constexpr const char* kFields[] = {"timestamp", "x", "y", "z"};
-  std::vector<GnssPositionSample> out;
-  ReadTimedCsv<3>(data_csv, kFields, /*extra_ok=*/true, "timestamp [ns], x, y, z",
-                  [&](int64_t t, const double* v) {
-                    out.push_back({t, Eigen::Vector3d(v[0], v[1], v[2])});
-                  });
   return out;
 }
 
@@ -243,6 +212,24 @@ camera::PinholeCamera ToPinholeCamera(const CameraCalibration& c) {
   }
   cam.Validate();
   return cam;
+}
+
+CameraCalibration ToCameraCalibration(const camera::PinholeCamera& camera,
+                                      const Rigid3d& body_from_cam, double rate_hz) {
+  CameraCalibration c;
+  c.width = camera.width;
+  c.height = camera.height;
+  c.fx = camera.fx;
+  c.fy = camera.fy;
+  c.cx = camera.cx;
+  c.cy = camera.cy;
+  c.distortion_model = camera::DistortionModelName(camera.distortion);
+  if (camera.distortion != camera::DistortionModel::kNone) {
+    c.distortion.assign(camera.coeffs.begin(), camera.coeffs.end());
+  }
+  c.rate_hz = rate_hz;
+  c.body_from_cam = body_from_cam;
+  return c;
 }
 
 camera::StereoRig ToStereoRig(const CameraCalibration& left, const CameraCalibration& right) {

@@ -1,9 +1,10 @@
 // The EuRoC/ASL dataset layout:
 //   <seq>/mav0/{cam0,cam1}/{sensor.yaml,data.csv,data/*.png}
 //   <seq>/mav0/imu0/{sensor.yaml,data.csv}
-//   <seq>/mav0/gnss0/data.csv                      (optional; timestamp [ns], x, y, z in ENU)
+//   <seq>/mav0/gnss0/{sensor.yaml,data.csv,llh.csv} (optional; gnss_io.h reads them)
 //   <seq>/mav0/state_groundtruth_estimate0/data.csv (optional)
 // sensor.yaml T_BS is body_from_sensor (it maps sensor-frame points into the body/IMU frame).
+// The writers of these files are in euroc_writer.h.
 #pragma once
 
 #include <cstdint>
@@ -48,11 +49,6 @@ struct ImuSample {
   Eigen::Vector3d accel_m_s2 = Eigen::Vector3d::Zero();
 };
 
-struct GnssPositionSample {
-  int64_t t_ns = 0;
-  Eigen::Vector3d position_enu_m = Eigen::Vector3d::Zero();
-};
-
 struct CameraStream {
   CameraCalibration calibration;
   std::vector<ImageEntry> images;
@@ -63,7 +59,7 @@ struct EurocDataset {
   std::optional<CameraStream> cam0, cam1;
   std::optional<ImuCalibration> imu_calibration;
   std::string imu_csv;          // empty when there is no imu0
-  std::string gnss_csv;         // empty when there is no gnss0
+  std::string gnss_csv;         // empty when there is no gnss0; read it with ReadGnssFile
   std::string groundtruth_csv;  // empty when there is no ground truth
 };
 
@@ -82,6 +78,10 @@ EurocDataset OpenEurocDataset(const std::string& dir, const EurocOpenOptions& op
 CameraCalibration ReadCameraCalibration(const std::string& sensor_yaml);
 // The camera model of a calibration (intrinsics, distortion); throws Error when it is invalid.
 camera::PinholeCamera ToPinholeCamera(const CameraCalibration& calibration);
+// The calibration of a camera model (the inverse of ToPinholeCamera); a camera without
+// distortion gets distortion_model "none" and no coefficients, as the reader gives them.
+CameraCalibration ToCameraCalibration(const camera::PinholeCamera& camera,
+                                      const Rigid3d& body_from_cam, double rate_hz);
 // The stereo rig of two calibrations: right_from_left = (body_from_right)^-1 * body_from_left.
 camera::StereoRig ToStereoRig(const CameraCalibration& left, const CameraCalibration& right);
 ImuCalibration ReadImuCalibration(const std::string& sensor_yaml);
@@ -90,7 +90,5 @@ std::vector<ImageEntry> ReadImageList(const std::string& data_csv, const std::st
                                       bool check_exist, bool drop_missing = false);
 // imu0 data.csv: "timestamp [ns], wx, wy, wz [rad/s], ax, ay, az [m/s^2]".
 std::vector<ImuSample> ReadImuCsv(const std::string& data_csv);
-// gnss0 data.csv: "timestamp [ns], x, y, z" (local ENU metres).
-std::vector<GnssPositionSample> ReadGnssCsv(const std::string& data_csv);
 
 }  // namespace optinav::io

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include "optinav/io/gnss_io.h"
 #include "optinav/io/trajectory_io.h"
 #include "optinav/util/testing.h"
 
@@ -67,7 +68,8 @@ TEST(EurocDataset, RealClipStereoRig) {
   EXPECT_EQ(rig.left.distortion, camera::DistortionModel::kRadialTangential);
   CameraCalibration bad = ds.cam0->calibration;
   bad.fx = 0;
-  EXPECT_THROW(ToPinholeCamera(bad), Error);
+  // The field names the sensor.yaml key to fix; the calibration no longer knows its file.
+  EXPECT_ERROR(ToPinholeCamera(bad), {.field = "intrinsics"}, "positive focal lengths");
 }
 
 TEST(EurocDataset, ReadsImuAt200Hz) {
@@ -110,7 +112,8 @@ TEST(EurocDataset, BadImuAndGnssAndYaml) {
   EXPECT_NO_THROW(OpenEurocDataset(root.string()));
   const auto imu_csv =
       testing::WriteFile(root / "imu0" / "data.csv", "100,0,0,0,0,0,9.81\n105,0,nan,0,0,0,9.81\n");
-  EXPECT_THROW(ReadImuCsv(imu_csv), Error);
+  EXPECT_ERROR(ReadImuCsv(imu_csv), {.file = imu_csv, .line = 2, .field = "w_y"},
+               "value is not finite: 'nan'");
   testing::WriteFile(root / "imu0" / "data.csv", "100,0,0,0,0,0,9.81\n90,0,0,0,0,0,9.81\n");
   try {
     ReadImuCsv(imu_csv);
@@ -120,9 +123,10 @@ TEST(EurocDataset, BadImuAndGnssAndYaml) {
   }
   const auto gnss =
       testing::WriteFile(root / "gnss0" / "data.csv", "#t,x,y,z\n100,1,2,3\n200,1,2\n");
-  EXPECT_THROW(ReadGnssCsv(gnss), Error);
+  // gnss0/data.csv is read by ReadGnssFile (gnss_io.h), the one GNSS csv reader.
+  EXPECT_ERROR(ReadGnssFile(gnss), {.file = gnss, .line = 3}, "found 3 field(s)");
   testing::WriteFile(root / "gnss0" / "data.csv", "#t,x,y,z\n100,1,2,3\n200,1,2,4\n");
-  EXPECT_EQ(ReadGnssCsv(gnss).size(), 2u);
+  EXPECT_EQ(ReadGnssFile(gnss).records.size(), 2u);
   EXPECT_FALSE(OpenEurocDataset(root.string()).gnss_csv.empty());
   testing::WriteFile(root / "cam0" / "sensor.yaml", "%YAML:1.0\nresolution: [752]\n");
   try {
@@ -131,7 +135,8 @@ TEST(EurocDataset, BadImuAndGnssAndYaml) {
   } catch (const Error& e) {
     EXPECT_EQ(e.context().field, "resolution");
   }
-  EXPECT_THROW(OpenEurocDataset((root / "nope").string()), Error);
+  EXPECT_ERROR(OpenEurocDataset((root / "nope").string()), {.file = (root / "nope").string()},
+               "dataset folder not found");
 }
 
 TEST(EurocDataset, EquidistantModel) {

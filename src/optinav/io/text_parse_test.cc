@@ -27,7 +27,10 @@ TEST(ParseSecondsToNs, ExactDecimalAndScientific) {
 TEST(ParseSecondsToNs, Rejects) {
   const ErrorContext ctx{.file = "f", .line = 3, .field = "t"};
   for (const char* bad : {"", "abc", "1.2.3", "1e", "nan", "inf", "1x", "1e30"}) {
-    EXPECT_THROW(ParseSecondsToNs(bad, ctx), Error) << bad;
+    SCOPED_TRACE(bad);
+    EXPECT_ERROR(ParseSecondsToNs(bad, ctx), {.file = "f", .line = 3, .field = "t"},
+                 std::string(bad) == "1e30" ? "timestamp out of range: '1e30'"
+                                            : "not a timestamp: '" + std::string(bad) + "'");
   }
   try {
     ParseSecondsToNs("x", ctx);
@@ -40,13 +43,16 @@ TEST(ParseNumbers, StrictDoublesAndInts) {
   const ErrorContext ctx;
   EXPECT_EQ(ParseFiniteDouble("-1.5e3", ctx), -1500.0);
   EXPECT_EQ(ParseFiniteDouble("+2", ctx), 2.0);
-  EXPECT_THROW(ParseFiniteDouble("nan", ctx), Error);
-  EXPECT_THROW(ParseFiniteDouble("inf", ctx), Error);
-  EXPECT_THROW(ParseFiniteDouble("1.0abc", ctx), Error);
-  EXPECT_THROW(ParseFiniteDouble("", ctx), Error);
-  EXPECT_THROW(ParseFiniteDouble("1e999", ctx), Error);
+  // The caller's context (file, line, column) is what the error reports.
+  const ErrorContext at{.file = "imu.csv", .line = 7, .field = "w_x"};
+  const testing::ExpectedError where{.file = "imu.csv", .line = 7, .field = "w_x"};
+  EXPECT_ERROR(ParseFiniteDouble("nan", at), where, "value is not finite: 'nan'");
+  EXPECT_ERROR(ParseFiniteDouble("inf", at), where, "value is not finite: 'inf'");
+  EXPECT_ERROR(ParseFiniteDouble("1.0abc", at), where, "not a number: '1.0abc'");
+  EXPECT_ERROR(ParseFiniteDouble("", at), where, "not a number: ''");
+  EXPECT_ERROR(ParseFiniteDouble("1e999", at), where, "number out of range: '1e999'");
   EXPECT_EQ(ParseInt64("1403715273262142976", ctx), 1403715273262142976);
-  EXPECT_THROW(ParseInt64("14.5", ctx), Error);
+  EXPECT_ERROR(ParseInt64("14.5", at), where, "not an integer: '14.5'");
 }
 
 TEST(FormatNs, RoundTrips) {
@@ -82,11 +88,14 @@ TEST(WriteFileAtomically, WritesAndNeverLeavesPartialFiles) {
   EXPECT_EQ(ReadFileToString(path), "hello");
   // Renaming onto an existing non-empty directory fails: the directory stays, no .tmp is left.
   std::filesystem::create_directories(dir / "d" / "x");
-  EXPECT_THROW(WriteFileAtomically((dir / "d").string(), "data"), Error);
+  EXPECT_ERROR(WriteFileAtomically((dir / "d").string(), "data"), {.file = (dir / "d").string()},
+               "cannot rename temporary file into place");
   EXPECT_TRUE(std::filesystem::is_directory(dir / "d" / "x"));
   EXPECT_FALSE(std::filesystem::exists(dir / "d.tmp"));
-  EXPECT_THROW(ReadFileToString((dir / "missing").string()), Error);
-  EXPECT_THROW(ReadFileToString(dir.string()), Error);
+  EXPECT_ERROR(ReadFileToString((dir / "missing").string()), {.file = (dir / "missing").string()},
+               "cannot open file");
+  EXPECT_ERROR(ReadFileToString(dir.string()), {.file = dir.string()},
+               "is a directory, not a file");
 }
 
 }  // namespace

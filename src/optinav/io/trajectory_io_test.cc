@@ -81,7 +81,8 @@ TEST(ReadTrajectory, KittiWithTimesFile) {
   // Count mismatch is an error naming the times file.
   const auto dir = testing::MakeTempDir("kittitimes");
   opt.kitti_times_path = testing::WriteFile(dir / "t.txt", "0.0\n0.1\n");
-  EXPECT_THROW(ReadTrajectory(Traj("KITTI_00_gt.txt"), opt), Error);
+  EXPECT_ERROR(ReadTrajectory(Traj("KITTI_00_gt.txt"), opt), {.file = opt.kitti_times_path},
+               "2 timestamps for 4541 poses in ");
 }
 
 TEST(WriteTrajectory, RoundTripsAllFormatsExactly) {
@@ -143,10 +144,13 @@ TEST(ReadTrajectory, BadInputIsAClearError) {
       ADD_FAILURE() << "no error for: " << c.what;
     } catch (const Error& e) {
       EXPECT_EQ(e.context().file, path) << c.what;
-      if (c.line) EXPECT_EQ(e.context().line, c.line) << c.what << ": " << e.what();
+      if (c.line) {
+        EXPECT_EQ(e.context().line, c.line) << c.what << ": " << e.what();
+      }
     }
   }
-  EXPECT_THROW(ReadTrajectory((dir / "does_not_exist").string()), Error);
+  EXPECT_ERROR(ReadTrajectory((dir / "does_not_exist").string()),
+               {.file = (dir / "does_not_exist").string()}, "cannot open file");
   // Repeated stamps (as in evo's V102.txt) are accepted.
   const auto dup = testing::WriteFile(dir / "dup.txt", "1.0 0 0 0 0 0 0 1\n1.0 1 0 0 0 0 0 1\n");
   EXPECT_EQ(ReadTrajectory(dup).size(), 2u);

@@ -1,7 +1,7 @@
-// Camera frames synthesised from an orthophoto, as the optical-navigation document does (crop
-// around the true position, rotate by the heading, crop larger then centre-crop), plus what real
-// flights add: altitude (scale) and camera tilt (perspective). Used by tests, benchmarks and
-// missions.
+// Camera frames synthesised from an orthophoto, as the orthophoto-navigation thesis (SEEDS.md part
+// 3) does (crop around the true position, rotate by the heading, crop larger then centre-crop),
+// plus what real flights add: altitude (scale) and camera tilt (perspective). Used by tests,
+// benchmarks and missions.
 #pragma once
 
 #include <Eigen/Core>

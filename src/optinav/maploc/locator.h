@@ -28,8 +28,9 @@ namespace optinav::maploc {
 struct Prior {
   std::optional<geo::LatLon> position;  // approximate position
   double radius_m = 500.0;              // how far the truth may be from it
-  // The document's prediction: more centres (e.g. last fix moved along the bearing to the
-  // target and deviated bearings); candidates are tiles within radius_m of any centre.
+  // The prediction of the orthophoto-navigation thesis (SEEDS.md part 3): more centres (e.g. the
+  // last fix moved along the bearing to the target and deviated bearings); candidates are tiles
+  // within radius_m of any centre.
   std::vector<geo::LatLon> extra_centres;
   std::optional<double> heading_deg;  // frame up direction, clockwise from north
   double heading_sigma_deg = 10.0;    // half-width of the heading search

@@ -7,15 +7,10 @@
 
 #include "optinav/maploc/frame_synth.h"
 #include "optinav/maploc/test_maps.h"
+#include "optinav/util/statistics.h"
 
 namespace optinav::maploc {
 namespace {
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return 1e300;
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
-}
 
 class Aero1Map : public ::testing::Test {
  protected:
@@ -44,8 +39,9 @@ std::string* Aero1Map::tif_ = nullptr;
 MapDatabase* Aero1Map::db_ = nullptr;
 
 TEST_F(Aero1Map, SimulatedFramesWithRotationScaleAndTilt) {
-  // The document's frames (crop, any rotation) plus altitude +-30 % and mild tilt, cut from a
-  // real aerial photograph; 200 seeded frames, half with a prior, half by global search.
+  // The frames of the orthophoto-navigation thesis (SEEDS.md part 3: crop, any rotation) plus
+  // altitude +-30 % and mild tilt, cut from a real aerial photograph; 200 seeded frames, half with
+  // a prior, half by global search.
   const geo::GeoRaster raster = geo::GeoRaster::Open(*tif_);
   Locator locator(*db_);
   std::mt19937 rng(2024);

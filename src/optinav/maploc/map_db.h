@@ -24,8 +24,9 @@ struct MapBuildOptions {
   double altitude_m = 300.0;                  // flight altitude above ground
   double hfov_deg = 60.0;                     // horizontal field of view of the camera
   int frame_width = 640, frame_height = 480;  // camera frame size, pixels
-  // Tile side = scale_factor x the frame's ground footprint width (the document reduces tiles
-  // so that altitude, zoom and view changes still overlap one tile well).
+  // Tile side = scale_factor x the frame's ground footprint width (the orthophoto-navigation
+  // thesis, SEEDS.md part 3, reduces tiles so that altitude, zoom and view changes still overlap
+  // one tile well).
   double scale_factor = 1.0;
   double overlap = 0.5;  // fraction of a tile shared with its neighbour, [0, 0.9]
   features::FeatureType feature_type = features::FeatureType::kOrb;

@@ -6,6 +6,7 @@
 #include <sqlite3.h>
 
 #include "optinav/maploc/test_maps.h"
+#include "optinav/util/testing.h"
 
 namespace optinav::maploc {
 namespace {
@@ -38,7 +39,8 @@ TEST(MapDatabase, TileGridFromCameraFootprint) {
   EXPECT_NEAR(plan.tiles[0].centre_crs.x(), 500000.0 + 120 * 0.25, 1e-9);
   MapBuildOptions bad = Aero1Options();
   bad.overlap = 0.95;
-  EXPECT_THROW(PlanMapDatabase(tif, bad), Error);
+  // Options come from flags: the message names the flag (no file or line to give).
+  EXPECT_ERROR(PlanMapDatabase(tif, bad), {}, "--overlap must be in [0, 0.9], got 0.95");
 }
 
 TEST(MapDatabase, BuildSaveLoadRoundTrip) {
@@ -57,7 +59,9 @@ TEST(MapDatabase, BuildSaveLoadRoundTrip) {
     const MapTile &a = built.tiles[i], &b = loaded.tiles[i];
     ASSERT_EQ(a.keypoints.size(), b.keypoints.size());
     EXPECT_EQ(cv::norm(a.descriptors, b.descriptors, cv::NORM_INF), 0.0);
-    if (!a.keypoints.empty()) EXPECT_EQ(a.keypoints.back(), b.keypoints.back());
+    if (!a.keypoints.empty()) {
+      EXPECT_EQ(a.keypoints.back(), b.keypoints.back());
+    }
     EXPECT_EQ(a.padded, b.padded);
     // Keypoints lie inside their tile, in map pixels.
     for (const auto& kp : b.keypoints) {
@@ -94,18 +98,22 @@ TEST(MapDatabase, BadDatabasesAndOrthophotos) {
   }
   const std::string incomplete = copy("incomplete.db");
   ExecSql(incomplete, "DELETE FROM meta WHERE key='complete'");
-  EXPECT_THROW(LoadMapDatabase(incomplete), Error);
+  EXPECT_ERROR(LoadMapDatabase(incomplete), {.file = incomplete},
+               "map database is incomplete (interrupted build?)");
   const std::string broken = copy("broken.db");
   ExecSql(broken, "UPDATE tiles SET descriptors=x'00' WHERE id=1");
-  EXPECT_THROW(LoadMapDatabase(broken), Error);
-  EXPECT_THROW(LoadMapDatabase(testing::WriteFile(dir / "text.db", "not sqlite")), Error);
-  EXPECT_THROW(LoadMapDatabase((dir / "none.db").string()), Error);
+  EXPECT_ERROR(LoadMapDatabase(broken), {.file = broken}, "tile 1 has inconsistent feature data");
+  const std::string text = testing::WriteFile(dir / "text.db", "not sqlite");
+  EXPECT_ERROR(LoadMapDatabase(text), {.file = text}, "not a valid optinav map database");
+  EXPECT_ERROR(LoadMapDatabase((dir / "none.db").string()), {.file = (dir / "none.db").string()},
+               "map database not found");
 
   // A failed build leaves an existing database untouched and no temporary file.
   const std::string plain = (dir / "plain.tif").string();
   cv::imwrite(plain, cv::Mat(64, 64, CV_8UC1, cv::Scalar(1)));
   const auto before = std::filesystem::file_size(good);
-  EXPECT_THROW(BuildMapDatabase(plain, Aero1Options(), good), Error);
+  EXPECT_ERROR(BuildMapDatabase(plain, Aero1Options(), good), {.file = plain},
+               "raster has no georeference");
   EXPECT_EQ(std::filesystem::file_size(good), before);
   EXPECT_FALSE(std::filesystem::exists(good + ".tmp"));
   EXPECT_NO_THROW(LoadMapDatabase(good));

@@ -1,4 +1,4 @@
-#include "optinav/nav/frame_odometry.h"
+#include "optinav/nav/internal/frame_odometry.h"
 
 #include <cmath>
 

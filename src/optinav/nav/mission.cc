@@ -272,8 +272,8 @@ MissionResult Mission::Run(const MissionOptions& o) {
     prior.heading_sigma_deg = failures > 3 ? 20.0 : 10.0;
     prior.altitude_m = altitude;
     if (!o.use_odometry) {
-      // The document's prediction: the reachable distance along the bearing to the target
-      // (and deviated bearings) from the last fix.
+      // The thesis's prediction (SEEDS.md part 3): the reachable distance along the bearing to the
+      // target (and deviated bearings) from the last fix.
       const double reach = o.speed_m_s * (t - last_fix_t);
       prior.position = geo::GeodesicDirect(last_fix, command, reach);
       prior.radius_m = std::max(250.0, 0.2 * reach + 150.0);
@@ -316,7 +316,7 @@ MissionResult Mission::Run(const MissionOptions& o) {
       log.fix_error_m = geo::GeodesicInverse(r.latlon, truth).distance_m;
       const Eigen::Vector2d z = to_enu(r.latlon);
       if (!o.use_odometry) {
-        x = z;  // the document: the fix is the estimate
+        x = z;  // as in the thesis: the fix is the estimate
         log.fix_accepted = true;
       } else {
         const double s = r.method == "features" ? fix_sigma_feat : fix_sigma_oc;
@@ -364,7 +364,7 @@ MissionResult Mission::Run(const MissionOptions& o) {
     }
     if (!log.fix_accepted) ++failures;
 
-    // 4. Guidance: towards the target from the estimate (the document's rule; without
+    // 4. Guidance: towards the target from the estimate (the thesis's rule; without
     // odometry, a failed fix keeps the last bearing).
     const geo::LatLon estimate = from_enu(x);
     log.estimate = estimate;

@@ -1,7 +1,7 @@
-// A GNSS-denied mission over an orthophoto (the optical-navigation document's loop, plus
-// odometry and fix gating): the drone knows its start and the target; every step it takes a
-// camera frame (synthesised from an orthophoto at its true pose), localizes it against the map
-// database, blends the fix with frame-to-frame odometry in a small Kalman filter, and turns
+// A GNSS-denied mission over an orthophoto (the loop of the orthophoto-navigation thesis, SEEDS.md
+// part 3, plus odometry and fix gating): the drone knows its start and the target; every step it
+// takes a camera frame (synthesised from an orthophoto at its true pose), localizes it against the
+// map database, blends the fix with frame-to-frame odometry in a small Kalman filter, and turns
 // towards the target.
 //
 // Frames and coordinates: truth and estimates are WGS84 lat/lon; the filter works in a local
@@ -20,7 +20,7 @@
 #include "optinav/geo/raster.h"
 #include "optinav/maploc/locator.h"
 #include "optinav/nav/frame_effects.h"
-#include "optinav/nav/frame_odometry.h"
+#include "optinav/nav/internal/frame_odometry.h"
 
 namespace optinav::nav {
 
@@ -36,7 +36,7 @@ struct MissionOptions {
   double wind_m_s = 0;           // constant wind (seeded direction) pushing the true drone
   FrameEffectOptions effects;
   FrameHook weather;                   // optional, applied after the photometric effects
-  bool use_odometry = true;            // false: the document's loop (fix or keep the last bearing)
+  bool use_odometry = true;            // false: the thesis loop (fix or keep the last bearing)
   double feature_fix_sigma_m = 0;      // 0: 1.5 map pixels
   double oc_fix_sigma_m = 0;           // 0: 3 map pixels
   double odometry_sigma = 0.05;        // odometry error per metre flown (fraction)
@@ -49,7 +49,7 @@ struct MissionOptions {
 
 struct StepTimes {
   double synthesis_ms = 0;                                       // simulation (not navigation)
-  double extraction_ms = 0, matching_ms = 0, estimation_ms = 0;  // the map fix (document rows)
+  double extraction_ms = 0, matching_ms = 0, estimation_ms = 0;  // the map fix (the thesis's rows)
   double odometry_ms = 0;
   double navigation_ms = 0;  // everything the drone computes: fix + odometry + filter + guidance
 };

@@ -11,16 +11,11 @@
 
 #include "optinav/maploc/frame_synth.h"
 #include "optinav/maploc/test_maps.h"
+#include "optinav/util/statistics.h"
 #include "optinav/util/testing.h"
 
 namespace optinav::nav {
 namespace {
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return -1;
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
-}
 
 TEST(FrameEffects, AltitudeProfileStaysInItsBand) {
   const AltitudeProfile p(0.1, 5);
@@ -123,7 +118,7 @@ TEST_F(NaipMission, BadMissionsAreRefusedBeforeTheyStart) {
   auto expect = [&](MissionOptions bad, const std::string& needle) {
     const std::string e = mission.Check(bad);
     EXPECT_NE(e.find(needle), std::string::npos) << "got: " << e;
-    EXPECT_THROW(mission.Run(bad), Error);
+    EXPECT_ERROR(mission.Run(bad), {}, needle);  // Run refuses with Check's message
   };
   MissionOptions b = o;
   b.target = {0.0, 0.0};
@@ -141,7 +136,8 @@ TEST_F(NaipMission, BadMissionsAreRefusedBeforeTheyStart) {
   b.speed_m_s = 140;
   b.step_s = 5;
   expect(b, "would not overlap");
-  EXPECT_THROW(RandomStartTarget(*db_, 50000, 300, 1), Error);
+  EXPECT_ERROR(RandomStartTarget(*db_, 50000, 300, 1), {},
+               "no start/target pair 50000 m apart fits inside the map with a 300 m margin");
 }
 
 struct Experiment {
@@ -277,10 +273,10 @@ TEST_F(NaipMission, WeatherHookLowersContrastMonotonically) {
   }
 }
 
-TEST_F(NaipMission, TheDocumentsLoopWithoutOdometryStillWorksOnTheMapImage) {
+TEST_F(NaipMission, TheThesisLoopWithoutOdometryStillWorksOnTheMapImage) {
   const Experiment e = RunMany(*db_, maploc::testmaps::Naip("20090818"), 5, 300,
                                [](MissionOptions& o) { o.use_odometry = false; });
-  Print("frames 2009, no odometry (the document's loop)", e, "5/5");
+  Print("frames 2009, no odometry (the thesis loop)", e, "5/5");
   EXPECT_EQ(e.reached, 5);
 }
 

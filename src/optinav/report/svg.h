@@ -16,7 +16,7 @@ Rgb ColorMap(double t);
 // Escapes &, <, > and quotes for SVG text and attributes.
 std::string XmlEscape(const std::string& text);
 
-// Accumulates SVG elements; Finish() returns the document.
+// Accumulates SVG elements; Finish() returns the whole SVG file as text.
 class SvgDocument {
  public:
   SvgDocument(double width, double height);

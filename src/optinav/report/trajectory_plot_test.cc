@@ -63,7 +63,7 @@ TEST(ErrorPlot, DecimatesLongTrajectoriesAndRejectsBadPlane) {
   EXPECT_LT(svg.size(), 2'000'000u);
   ErrorPlotInput bad = f.Input();
   bad.plane = "ab";
-  EXPECT_THROW(RenderErrorPlotSvg(bad), Error);
+  EXPECT_ERROR(RenderErrorPlotSvg(bad), {.field = "--plot-plane"}, "unknown plot plane 'ab'");
   const auto dir = testing::MakeTempDir("plot");
   WriteErrorPlotSvg((dir / "p.svg").string(), f.Input());
   EXPECT_TRUE(std::filesystem::exists(dir / "p.svg"));

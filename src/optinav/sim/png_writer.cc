@@ -1,4 +1,4 @@
-#include "optinav/sim/png_writer.h"
+#include "optinav/sim/internal/png_writer.h"
 
 #include <csetjmp>
 #include <string>

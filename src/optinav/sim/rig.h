@@ -35,9 +35,9 @@ inline Rigid3d ForwardCamera(const Eigen::Vector3d& position, double down_rad) {
   return Rigid3d((pitch * Eigen::Quaterniond(r)).normalized(), position);
 }
 
-// The weather document's car rig: two 800x600 cameras, 90 deg horizontal field of view, no
-// distortion, 0.52 m baseline, 1.9 m above the road (the body frame sits on the road), a
-// stereo pair every 30 ms.
+// The car rig of the AirSim weather dataset (SEEDS.md part 1): two 800x600 cameras, 90 deg
+// horizontal field of view, no distortion, 0.52 m baseline, 1.9 m above the road (the body frame
+// sits on the road), a stereo pair every 30 ms.
 inline SensorRig CarRig() {
   SensorRig r;
   r.left = r.right = camera::PinholeCamera::FromHorizontalFov(800, 600, M_PI / 2);

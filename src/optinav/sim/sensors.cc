@@ -1,5 +1,6 @@
 #include "optinav/sim/sensors.h"
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -98,6 +99,12 @@ std::string GnssOptions::Check() const {
   if (!(outlier_magnitude_m >= 0)) {
     return fmt::format("--gnss-outliers magnitude {} m < 0", outlier_magnitude_m);
   }
+  if (!(outlier_magnitude_max_m >= 0 && std::isfinite(outlier_magnitude_max_m))) {
+    return fmt::format("outlier_magnitude_max_m {} < 0", outlier_magnitude_max_m);
+  }
+  if (!(first_sample_s >= 0 && std::isfinite(first_sample_s))) {
+    return fmt::format("first_sample_s {} < 0", first_sample_s);
+  }
   for (const GnssOutage& o : outages) {
     if (!(o.start_s >= 0 && o.duration_s > 0)) {
       return fmt::format("--gnss-outage {}:{} needs start >= 0 and duration > 0", o.start_s,
@@ -110,32 +117,103 @@ std::string GnssOptions::Check() const {
   return "";
 }
 
-std::vector<GnssMeasurement> SimulateGnss(const BodyTrajectory& trajectory,
-                                          const GnssOptions& options, uint64_t seed) {
-  std::mt19937_64 rng(seed ^ 0x9e3779b97f4a7c15ull);
-  std::uniform_real_distribution<double> u01(0, 1);
+namespace {
+
+// One epoch's random draws.
+struct GnssEpochDraw {
+  Eigen::Vector3d noise_m = Eigen::Vector3d::Zero();
+  bool outlier = false;
+  Eigen::Vector3d outlier_offset_m = Eigen::Vector3d::Zero();
+};
+
+// GnssDraws::kSingleStream.
+class SingleStreamDraws {
+ public:
+  SingleStreamDraws(const GnssOptions& o, uint64_t seed)
+      : o_(o), rng_(seed ^ 0x9e3779b97f4a7c15ull) {}
+
+  GnssEpochDraw Next() {
+    GnssEpochDraw d;
+    d.noise_m = Gaussian3(rng_, o_.sigma_m);
+    const bool outlier = u01_(rng_) < o_.outlier_fraction;
+    const Eigen::Vector3d dir = Gaussian3(rng_, 1.0);
+    double magnitude = o_.outlier_magnitude_m;
+    if (o_.outlier_magnitude_max_m > magnitude)
+      magnitude += (o_.outlier_magnitude_max_m - magnitude) * u01_(rng_);
+    if (outlier && dir.norm() > 1e-9) {
+      d.outlier = true;
+      d.outlier_offset_m = magnitude * dir.normalized();
+    }
+    return d;
+  }
+
+ private:
+  const GnssOptions& o_;
+  std::mt19937_64 rng_;
+  std::uniform_real_distribution<double> u01_{0, 1};
+};
+
+// GnssDraws::kNoiseAndOutlierStreams.
+class TwoStreamDraws {
+ public:
+  TwoStreamDraws(const GnssOptions& o, uint64_t seed)
+      : o_(o), noise_rng_(1000 + seed), outlier_rng_(5000 + seed) {}
+
+  GnssEpochDraw Next() {
+    GnssEpochDraw d;
+    // Components drawn z, y, x: the order in which GCC evaluated the Eigen::Vector3d constructor
+    // arguments of the benchmark's original generator (the same normal_distribution caches its
+    // second deviate, so the order also decides which stream a cached deviate came from).
+    const Eigen::Vector3d noise = Normal3(noise_rng_);
+    d.outlier = o_.outlier_fraction > 0 && u01_(outlier_rng_) < o_.outlier_fraction;
+    const Eigen::Vector3d dir = Normal3(outlier_rng_);
+    const double low = o_.outlier_magnitude_m;
+    const double magnitude =
+        low + (std::max(o_.outlier_magnitude_max_m, low) - low) * u01_(outlier_rng_);
+    d.noise_m = o_.sigma_m * noise;
+    if (d.outlier) d.outlier_offset_m = dir.normalized() * magnitude;
+    return d;
+  }
+
+ private:
+  Eigen::Vector3d Normal3(std::mt19937& rng) {
+    const double z = normal_(rng), y = normal_(rng), x = normal_(rng);
+    return {x, y, z};
+  }
+
+  const GnssOptions& o_;
+  std::mt19937 noise_rng_, outlier_rng_;
+  std::normal_distribution<double> normal_;
+  std::uniform_real_distribution<double> u01_{0.0, 1.0};
+};
+
+template <typename Draws>
+std::vector<GnssMeasurement> SimulateGnssWith(Draws draws, const PoseAtTime& world_from_body,
+                                              int64_t start_ns, int64_t end_ns,
+                                              const GnssOptions& options) {
   const geo::LocalEnu enu(options.origin, options.origin_height_m);
   std::vector<GnssMeasurement> out;
   const double dt = 1.0 / options.rate_hz;
+  const int64_t first_ns =
+      start_ns + static_cast<int64_t>(std::llround(options.first_sample_s * 1e9));
   for (int64_t k = 0;; ++k) {
-    const double t_s = k * dt;
-    const int64_t t = trajectory.start_ns() + static_cast<int64_t>(std::llround(t_s * 1e9));
-    if (t > trajectory.end_ns()) break;
-    // Draw the noise for every epoch, so outages do not shift the noise of later samples.
-    const Eigen::Vector3d noise = Gaussian3(rng, options.sigma_m);
-    const bool outlier = u01(rng) < options.outlier_fraction;
-    Eigen::Vector3d dir = Gaussian3(rng, 1.0);
+    const double t_s = options.first_sample_s + k * dt;
+    const int64_t t = first_ns + static_cast<int64_t>(std::llround(k * dt * 1e9));
+    if (t > end_ns) break;
+    // Drawn for every epoch, so outages do not shift the noise of later samples.
+    const GnssEpochDraw d = draws.Next();
     bool in_outage = false;
     for (const GnssOutage& o : options.outages) {
       in_outage |= t_s >= o.start_s && t_s < o.start_s + o.duration_s;
     }
     if (in_outage) continue;
-    const BodyState s = trajectory.At(t);
+    const std::optional<Rigid3d> pose = world_from_body(t);
+    if (!pose) continue;
     GnssMeasurement m;
     m.t_ns = t;
-    m.position_enu_m = s.world_from_body * options.lever_arm_in_body + noise;
-    if (outlier && dir.norm() > 1e-9) {
-      m.position_enu_m += options.outlier_magnitude_m * dir.normalized();
+    m.position_enu_m = *pose * options.lever_arm_in_body + d.noise_m;
+    if (d.outlier) {
+      m.position_enu_m += d.outlier_offset_m;
       m.outlier = true;
     }
     const geo::LatLon ll = enu.FromEnu(m.position_enu_m, &m.height_m);
@@ -144,6 +222,29 @@ std::vector<GnssMeasurement> SimulateGnss(const BodyTrajectory& trajectory,
     out.push_back(m);
   }
   return out;
+}
+
+}  // namespace
+
+std::vector<GnssMeasurement> SimulateGnss(const PoseAtTime& world_from_body, int64_t start_ns,
+                                          int64_t end_ns, const GnssOptions& options,
+                                          uint64_t seed) {
+  switch (options.draws) {
+    case GnssDraws::kSingleStream:
+      return SimulateGnssWith(SingleStreamDraws(options, seed), world_from_body, start_ns, end_ns,
+                              options);
+    case GnssDraws::kNoiseAndOutlierStreams:
+      return SimulateGnssWith(TwoStreamDraws(options, seed), world_from_body, start_ns, end_ns,
+                              options);
+  }
+  return {};
+}
+
+std::vector<GnssMeasurement> SimulateGnss(const BodyTrajectory& trajectory,
+                                          const GnssOptions& options, uint64_t seed) {
+  return SimulateGnss(
+      [&](int64_t t_ns) -> std::optional<Rigid3d> { return trajectory.At(t_ns).world_from_body; },
+      trajectory.start_ns(), trajectory.end_ns(), options, seed);
 }
 
 std::pair<double, double> ParseOutlierSpec(const std::string& text, const std::string& field) {

@@ -6,10 +6,13 @@
 // noise model. Defaults are EuRoC's ADIS16448 figures.
 // GNSS: the antenna (at a lever arm in the body frame) in local ENU with Gaussian noise, optional
 // outliers and outage windows, also as WGS84 latitude/longitude/ellipsoidal height about the
-// origin of the ENU frame.
+// origin of the ENU frame. The body pose comes from a BodyTrajectory (`optinav sim`) or from any
+// pose-at-time function (`optinav bench gnss` samples a recorded ground truth).
 #pragma once
 
 #include <cstdint>
+#include <functional>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -51,12 +54,31 @@ struct GnssOutage {
   double start_s = 0, duration_s = 0;  // seconds after the start of the trajectory
 };
 
+// How the random numbers are drawn. Both schemes draw every epoch's noise, outlier decision and
+// outlier offset also inside outages, so the noise of a sample depends only on its epoch and the
+// seed: runs that differ only by outages (or by the outlier fraction) share their noise (common
+// random numbers).
+enum class GnssDraws {
+  // One std::mt19937_64 stream seeded from `seed`: per epoch the noise, the outlier decision,
+  // the outlier direction (and magnitude, for a magnitude range). `optinav sim`.
+  kSingleStream,
+  // Two std::mt19937 streams: the noise from seed 1000 + seed, the outlier decision (drawn only
+  // when outlier_fraction > 0), direction and magnitude from seed 5000 + seed, normal deviates
+  // through one std::normal_distribution shared by both. `optinav bench gnss`: its published
+  // figures were made with these draws.
+  kNoiseAndOutlierStreams,
+};
+
 struct GnssOptions {
   double rate_hz = 5.0;
+  double first_sample_s = 0.0;       // the first sample this long after the start, then 1 / rate
   double sigma_m = 1.0;              // per axis
   double outlier_fraction = 0.0;     // [0, 1]
   double outlier_magnitude_m = 0.0;  // outliers are offset by this distance, random direction
-  std::vector<GnssOutage> outages;   // no samples inside these windows
+  // Above outlier_magnitude_m: the offset is uniform in [outlier_magnitude_m, this].
+  double outlier_magnitude_max_m = 0.0;
+  std::vector<GnssOutage> outages;  // no samples inside these windows
+  GnssDraws draws = GnssDraws::kSingleStream;
   Eigen::Vector3d lever_arm_in_body{0, 0, 0.1};  // antenna position in the body frame (m)
   geo::LatLon origin{47.3769, 8.5417};           // the ENU origin (Zurich by default)
   double origin_height_m = 408.0;                // ellipsoidal
@@ -70,6 +92,16 @@ struct GnssMeasurement {
   bool outlier = false;
 };
 
+// The body pose in the world (ENU) frame at a time; nullopt where it is unknown (that epoch gives
+// no sample, its random numbers are still drawn).
+using PoseAtTime = std::function<std::optional<Rigid3d>(int64_t t_ns)>;
+
+// Samples at start_ns + first_sample_s + k / rate_hz for every k with t <= end_ns; outage windows
+// count from start_ns.
+std::vector<GnssMeasurement> SimulateGnss(const PoseAtTime& world_from_body, int64_t start_ns,
+                                          int64_t end_ns, const GnssOptions& options,
+                                          uint64_t seed);
+// The same over the whole trajectory.
 std::vector<GnssMeasurement> SimulateGnss(const BodyTrajectory& trajectory,
                                           const GnssOptions& options, uint64_t seed);
 

@@ -12,9 +12,12 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "optinav/io/airsim_recording.h"
+#include "optinav/io/euroc_dataset.h"
+#include "optinav/io/euroc_writer.h"
+#include "optinav/io/gnss_io.h"
 #include "optinav/io/text_parse.h"
 #include "optinav/io/waypoints.h"
-#include "optinav/sim/png_writer.h"
+#include "optinav/sim/internal/png_writer.h"
 #include "optinav/sim/renderer.h"
 #include "optinav/util/error.h"
 #include "optinav/util/queue.h"
@@ -27,114 +30,66 @@ namespace {
 constexpr int64_t kStartNs = 1'700'000'000'000'000'000;  // 2023-11-14T22:13:20Z
 constexpr const char* kMarker = "sim_complete.json";
 
-std::string MatrixYaml(const Eigen::Matrix4d& m) {
-  std::string s = "  cols: 4\n  rows: 4\n  data: [";
-  for (int r = 0; r < 4; ++r) {
-    for (int c = 0; c < 4; ++c) {
-      s += fmt::format("{:.12f}{}", m(r, c),
-                       r == 3 && c == 3 ? "]\n" : (c == 3 ? ",\n         " : ", "));
-    }
-  }
-  return s;
+// The simulation's sensors in the io writers' terms (io/euroc_writer.h formats the files).
+io::ImuCalibration ImuCalibrationOf(const ImuOptions& o) {
+  io::ImuCalibration c;
+  c.rate_hz = o.rate_hz;
+  c.gyroscope_noise_density = o.gyroscope_noise_density;
+  c.gyroscope_random_walk = o.gyroscope_random_walk;
+  c.accelerometer_noise_density = o.accelerometer_noise_density;
+  c.accelerometer_random_walk = o.accelerometer_random_walk;
+  return c;  // body_from_imu: identity, the IMU defines the body frame
 }
 
-std::string CameraYaml(const camera::PinholeCamera& c, const Rigid3d& body_from_cam, double rate_hz,
-                       const std::string& comment) {
-  const bool radtan = c.distortion == camera::DistortionModel::kRadialTangential ||
-                      c.distortion == camera::DistortionModel::kNone;
-  return fmt::format(
-      "%YAML:1.0\n# {}\nsensor_type: camera\ncomment: {}\n\n# Sensor extrinsics wrt. the "
-      "body-frame.\nT_BS:\n{}\n# Camera specific definitions.\nrate_hz: {:.6f}\nresolution: "
-      "[{}, {}]\ncamera_model: pinhole\nintrinsics: [{:.9f}, {:.9f}, {:.9f}, {:.9f}] #fu, fv, "
-      "cu, cv\ndistortion_model: {}\ndistortion_coefficients: [{:.12g}, {:.12g}, {:.12g}, "
-      "{:.12g}]\n",
-      "written by optinav sim", comment, MatrixYaml(body_from_cam.ToMatrix()), rate_hz, c.width,
-      c.height, c.fx, c.fy, c.cx, c.cy, radtan ? "radial-tangential" : "equidistant", c.coeffs[0],
-      c.coeffs[1], c.coeffs[2], c.coeffs[3]);
+io::GnssSensorDescription GnssDescriptionOf(const GnssOptions& o) {
+  io::GnssSensorDescription d;
+  d.lever_arm_in_body = o.lever_arm_in_body;
+  d.rate_hz = o.rate_hz;
+  d.sigma_m = o.sigma_m;
+  d.outlier_fraction = o.outlier_fraction;
+  d.outlier_magnitude_m = o.outlier_magnitude_m;
+  for (const GnssOutage& w : o.outages) d.outages_s.emplace_back(w.start_s, w.duration_s);
+  d.origin_lat_lon_height = Eigen::Vector3d(o.origin.lat_deg, o.origin.lon_deg, o.origin_height_m);
+  return d;
 }
 
-std::string ImuYaml(const ImuOptions& o) {
-  return fmt::format(
-      "%YAML:1.0\n# written by optinav sim\nsensor_type: imu\ncomment: simulated IMU, "
-      "Kalibr/EuRoC noise model\n\n# Sensor extrinsics wrt. the body-frame.\nT_BS:\n{}\n"
-      "rate_hz: {:.6f}\n\n# inertial sensor noise model parameters (static)\n"
-      "gyroscope_noise_density: {:.9g}     # [ rad / s / sqrt(Hz) ]\n"
-      "gyroscope_random_walk: {:.9g}       # [ rad / s^2 / sqrt(Hz) ]\n"
-      "accelerometer_noise_density: {:.9g} # [ m / s^2 / sqrt(Hz) ]\n"
-      "accelerometer_random_walk: {:.9g}   # [ m / s^3 / sqrt(Hz) ]\n"
-      "noise_free: {}\n",
-      MatrixYaml(Eigen::Matrix4d::Identity()), o.rate_hz, o.gyroscope_noise_density,
-      o.gyroscope_random_walk, o.accelerometer_noise_density, o.accelerometer_random_walk,
-      o.noise_free ? "true" : "false");
+std::vector<io::ImuSample> ImuSamplesOf(const std::vector<ImuMeasurement>& imu) {
+  std::vector<io::ImuSample> out;
+  out.reserve(imu.size());
+  for (const ImuMeasurement& m : imu) out.push_back({m.t_ns, m.gyro_rad_s, m.accel_m_s2});
+  return out;
 }
 
-std::string GnssYaml(const GnssOptions& o) {
-  std::string outages = "[";
-  for (size_t i = 0; i < o.outages.size(); ++i) {
-    outages += fmt::format("{}[{:.3f}, {:.3f}]", i ? ", " : "", o.outages[i].start_s,
-                           o.outages[i].duration_s);
-  }
-  outages += "]";
-  return fmt::format(
-      "%YAML:1.0\n# written by optinav sim\nsensor_type: gnss\ncomment: antenna position; "
-      "data.csv local ENU metres about the origin, llh.csv WGS84\n\n# Antenna (lever arm) wrt. "
-      "the body-frame.\nT_BS:\n{}\nrate_hz: {:.6f}\nsigma_m: {:.6f}\n"
-      "outlier_fraction: {:.6f}\noutlier_magnitude_m: {:.6f}\noutages_s: {} # [start, "
-      "duration] after the first sample\norigin_latitude_deg: {:.9f}\norigin_longitude_deg: "
-      "{:.9f}\norigin_height_m: {:.4f}\n",
-      MatrixYaml(Rigid3d(Eigen::Quaterniond::Identity(), o.lever_arm_in_body).ToMatrix()),
-      o.rate_hz, o.sigma_m, o.outlier_fraction, o.outlier_magnitude_m, outages, o.origin.lat_deg,
-      o.origin.lon_deg, o.origin_height_m);
-}
-
-std::string ImuCsv(const std::vector<ImuMeasurement>& imu) {
-  std::string s =
-      "#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],"
-      "a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]\n";
-  for (const auto& m : imu) {
-    s += fmt::format("{},{:.12f},{:.12f},{:.12f},{:.12f},{:.12f},{:.12f}\n", m.t_ns,
-                     m.gyro_rad_s.x(), m.gyro_rad_s.y(), m.gyro_rad_s.z(), m.accel_m_s2.x(),
-                     m.accel_m_s2.y(), m.accel_m_s2.z());
-  }
-  return s;
-}
-
-std::string GroundTruthCsv(const BodyTrajectory& traj, const std::vector<ImuMeasurement>& imu) {
-  std::string s =
-      "#timestamp, p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], "
-      "q_RS_z [], v_RS_R_x [m s^-1], v_RS_R_y [m s^-1], v_RS_R_z [m s^-1], b_w_RS_S_x [rad "
-      "s^-1], b_w_RS_S_y [rad s^-1], b_w_RS_S_z [rad s^-1], b_a_RS_S_x [m s^-2], b_a_RS_S_y [m "
-      "s^-2], b_a_RS_S_z [m s^-2]\n";
-  for (const auto& m : imu) {
+// The ground truth at the IMU's stamps, with the biases the IMU samples carry.
+std::vector<io::GroundTruthState> GroundTruthOf(const BodyTrajectory& traj,
+                                                const std::vector<ImuMeasurement>& imu) {
+  std::vector<io::GroundTruthState> out;
+  out.reserve(imu.size());
+  for (const ImuMeasurement& m : imu) {
     const BodyState st = traj.At(m.t_ns);
-    const Eigen::Vector3d& p = st.world_from_body.translation;
-    const Eigen::Vector4d q = QuaternionToWxyz(st.world_from_body.rotation);
-    const Eigen::Vector3d& v = st.velocity_in_world;
-    s += fmt::format(
-        "{},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9g},{:.9g},"
-        "{:.9g},{:.9g},{:.9g},{:.9g}\n",
-        m.t_ns, p.x(), p.y(), p.z(), q[0], q[1], q[2], q[3], v.x(), v.y(), v.z(), m.gyro_bias.x(),
-        m.gyro_bias.y(), m.gyro_bias.z(), m.accel_bias.x(), m.accel_bias.y(), m.accel_bias.z());
+    out.push_back({.t_ns = m.t_ns,
+                   .world_from_body = st.world_from_body,
+                   .velocity_in_world = st.velocity_in_world,
+                   .gyro_bias = m.gyro_bias,
+                   .accel_bias = m.accel_bias});
   }
-  return s;
+  return out;
 }
 
-std::string GnssCsv(const std::vector<GnssMeasurement>& g) {
-  std::string s = "#timestamp [ns], x [m], y [m], z [m]\n";
-  for (const auto& m : g) {
-    s += fmt::format("{},{:.6f},{:.6f},{:.6f}\n", m.t_ns, m.position_enu_m.x(),
-                     m.position_enu_m.y(), m.position_enu_m.z());
+// The GNSS samples as ENU positions or latitude/longitude/height, with their outlier flags.
+std::vector<io::GnssRecord> GnssRecordsOf(const std::vector<GnssMeasurement>& g,
+                                          io::GnssFileKind kind, std::vector<bool>* outliers) {
+  std::vector<io::GnssRecord> out;
+  out.reserve(g.size());
+  for (const GnssMeasurement& m : g) {
+    io::GnssRecord r;
+    r.t_ns = m.t_ns;
+    r.value = kind == io::GnssFileKind::kEnu ? m.position_enu_m
+                                             : Eigen::Vector3d(m.lat_deg, m.lon_deg, m.height_m);
+    out.push_back(r);
+    if (outliers) outliers->push_back(m.outlier);
   }
-  return s;
-}
-
-std::string GnssLlhCsv(const std::vector<GnssMeasurement>& g) {
-  std::string s = "#timestamp [ns], latitude [deg], longitude [deg], height [m], outlier\n";
-  for (const auto& m : g) {
-    s += fmt::format("{},{:.10f},{:.10f},{:.6f},{}\n", m.t_ns, m.lat_deg, m.lon_deg, m.height_m,
-                     m.outlier ? 1 : 0);
-  }
-  return s;
+  return out;
 }
 
 struct ImageJob {
@@ -252,7 +207,7 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
   fs::create_directories(right_dir);
 
   // Writer threads encode and write the PNGs while the next frames render (PNG encoding costs
-  // about as much as rendering; sim/png_writer.h).
+  // about as much as rendering; sim/internal/png_writer.h).
   ThreadSafeQueue<ImageJob> queue(8);
   std::mutex error_mutex;
   std::string write_error;
@@ -286,11 +241,8 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
     for (auto& w : writers) w.join();
   };
   const Renderer renderer(world);
-  std::string cam0_csv = "#timestamp [ns],filename\n", cam1_csv = cam0_csv;
-  std::string rec =
-      "VehicleName\tTimeStamp\tPOS_X\tPOS_Y\tPOS_Z\tQ_W\tQ_X\tQ_Y\tQ_Z\tThrottle\t"
-      "Steering\tBrake\tGear\tHandbrake\tRPM\tSpeed\tImageFile\n";
-  std::string cam_info = "TimeStamp,POS_X,POS_Y,POS_Z,Q_W,Q_X,Q_Y,Q_Z\n";
+  std::vector<io::ImageEntry> image_list;  // EuRoC: the same file names for cam0 and cam1
+  io::AirsimRecording airsim;              // AirSim: the rows of airsim_rec.txt and camera_info.csv
   try {
     for (size_t k = 0; k < frame_times.size(); ++k) {
       const int64_t t = frame_times[k];
@@ -302,29 +254,25 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
       std::string lname, rname;
       if (euroc) {
         lname = rname = fmt::format("{}.png", t);
-        cam0_csv += fmt::format("{},{}\n", t, lname);
-        cam1_csv += fmt::format("{},{}\n", t, rname);
+        image_list.push_back({.t_ns = t, .path = lname});
       } else {
         lname = fmt::format("img_front_left_0_{}.png", t);
         rname = fmt::format("img_front_right_0_{}.png", t);
-        const int64_t t_ms = (t + 500'000) / 1'000'000;
-        const Rigid3d ned_body = io::NedFrdFromEnuFlu(st.world_from_body);
-        const Eigen::Vector4d q = QuaternionToWxyz(ned_body.rotation);
         const CarControls c = traj.ControlsAt(t).value_or(CarControls{});
         const double speed = st.velocity_in_world.norm();
-        const double rpm = c.gear ? 800 + 180 * speed : 0;  // a fixed gear ratio, idle 800
-        rec += fmt::format(
-            "{}\t{}\t{:.6f}\t{:.6f}\t{:.6f}\t{:.9f}\t{:.9f}\t{:.9f}\t{:.9f}\t{:.3f}\t{:.3f}\t{:.3f}"
-            "\t"
-            "{}\t{}\t{:.1f}\t{:.4f}\t{};{}\n",
-            drone ? "Drone1" : "PhysXCar", t_ms, ned_body.translation.x(), ned_body.translation.y(),
-            ned_body.translation.z(), q[0], q[1], q[2], q[3], c.throttle, c.steering, c.brake,
-            c.gear, c.handbrake ? 1 : 0, rpm, speed, lname, rname);
-        const Rigid3d ned_cam = io::NedAirsimCameraFromEnuOptical(world_from_left);
-        const Eigen::Vector4d qc = QuaternionToWxyz(ned_cam.rotation);
-        cam_info += fmt::format("{},{:.6f},{:.6f},{:.6f},{:.9f},{:.9f},{:.9f},{:.9f}\n", t_ms,
-                                ned_cam.translation.x(), ned_cam.translation.y(),
-                                ned_cam.translation.z(), qc[0], qc[1], qc[2], qc[3]);
+        airsim.records.push_back(
+            {.t_ns = t,
+             .vehicle = drone ? "Drone1" : "PhysXCar",
+             .world_from_body = st.world_from_body,
+             .throttle = c.throttle,
+             .steering = c.steering,
+             .brake = c.brake,
+             .rpm = c.gear ? 800 + 180 * speed : 0,  // a fixed gear ratio, idle 800
+             .speed_m_s = speed,
+             .gear = c.gear,
+             .handbrake = c.handbrake,
+             .image_paths = {lname, rname}});
+        airsim.left_camera.push_back({.t_ns = t, .world_from_cam = world_from_left});
       }
       if (!queue.Push({(left_dir / lname).string(), std::move(left)}) ||
           !queue.Push({(right_dir / rname).string(), std::move(right)})) {
@@ -342,33 +290,43 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
   const std::string comment =
       fmt::format("optinav sim, world {}, weather {}, seed {}", WorldName(world.kind),
                   options.weather.ToString(), options.seed);
-  const std::string imu_csv = ImuCsv(imu), gt_csv = GroundTruthCsv(traj, imu);
+  const std::vector<io::ImuSample> imu_samples = ImuSamplesOf(imu);
+  const std::vector<io::GroundTruthState> ground_truth = GroundTruthOf(traj, imu);
+  std::vector<bool> outliers;
+  const std::vector<io::GnssRecord> gnss_enu = GnssRecordsOf(gnss, io::GnssFileKind::kEnu, nullptr);
+  const std::vector<io::GnssRecord> gnss_llh =
+      GnssRecordsOf(gnss, io::GnssFileKind::kLatLonHeight, &outliers);
   if (euroc) {
-    io::WriteFileAtomically((mav0 / "cam0" / "data.csv").string(), cam0_csv);
-    io::WriteFileAtomically((mav0 / "cam1" / "data.csv").string(), cam1_csv);
-    io::WriteFileAtomically(
+    io::WriteImageList((mav0 / "cam0" / "data.csv").string(), image_list);
+    io::WriteImageList((mav0 / "cam1" / "data.csv").string(), image_list);
+    io::WriteCameraSensorYaml(
         (mav0 / "cam0" / "sensor.yaml").string(),
-        CameraYaml(rig.left, rig.body_from_left, rig.camera_rate_hz, "left camera, " + comment));
-    io::WriteFileAtomically(
+        io::ToCameraCalibration(rig.left, rig.body_from_left, rig.camera_rate_hz),
+        "left camera, " + comment);
+    io::WriteCameraSensorYaml(
         (mav0 / "cam1" / "sensor.yaml").string(),
-        CameraYaml(rig.right, rig.body_from_right, rig.camera_rate_hz, "right camera, " + comment));
+        io::ToCameraCalibration(rig.right, rig.body_from_right, rig.camera_rate_hz),
+        "right camera, " + comment);
     fs::create_directories(mav0 / "imu0");
     fs::create_directories(mav0 / "gnss0");
     fs::create_directories(mav0 / "state_groundtruth_estimate0");
-    io::WriteFileAtomically((mav0 / "imu0" / "data.csv").string(), imu_csv);
-    io::WriteFileAtomically((mav0 / "imu0" / "sensor.yaml").string(), ImuYaml(options.imu));
-    io::WriteFileAtomically((mav0 / "gnss0" / "data.csv").string(), GnssCsv(gnss));
-    io::WriteFileAtomically((mav0 / "gnss0" / "llh.csv").string(), GnssLlhCsv(gnss));
-    io::WriteFileAtomically((mav0 / "gnss0" / "sensor.yaml").string(), GnssYaml(gnss_opt));
-    io::WriteFileAtomically((mav0 / "state_groundtruth_estimate0" / "data.csv").string(), gt_csv);
+    io::WriteImuCsv((mav0 / "imu0" / "data.csv").string(), imu_samples);
+    io::WriteImuSensorYaml((mav0 / "imu0" / "sensor.yaml").string(), ImuCalibrationOf(options.imu),
+                           options.imu.noise_free, "simulated IMU, Kalibr/EuRoC noise model");
+    io::WriteGnssCsv((mav0 / "gnss0" / "data.csv").string(), io::GnssFileKind::kEnu, gnss_enu);
+    io::WriteGnssCsv((mav0 / "gnss0" / "llh.csv").string(), io::GnssFileKind::kLatLonHeight,
+                     gnss_llh, &outliers);
+    io::WriteGnssSensorYaml((mav0 / "gnss0" / "sensor.yaml").string(), GnssDescriptionOf(gnss_opt));
+    io::WriteGroundTruthCsv((mav0 / "state_groundtruth_estimate0" / "data.csv").string(),
+                            ground_truth);
   } else {
-    io::WriteFileAtomically((out / "airsim_rec.txt").string(), rec);
-    io::WriteFileAtomically((out / "camera_info.csv").string(), cam_info);
+    io::WriteAirsimRecording(out.string(), airsim);
     // Extras beyond AirSim's own files, in the EuRoC layouts (ENU world, body x forward, y left).
-    io::WriteFileAtomically((out / "imu0.csv").string(), imu_csv);
-    io::WriteFileAtomically((out / "gnss0.csv").string(), GnssCsv(gnss));
-    io::WriteFileAtomically((out / "gnss0_llh.csv").string(), GnssLlhCsv(gnss));
-    io::WriteFileAtomically((out / "groundtruth.csv").string(), gt_csv);
+    io::WriteImuCsv((out / "imu0.csv").string(), imu_samples);
+    io::WriteGnssCsv((out / "gnss0.csv").string(), io::GnssFileKind::kEnu, gnss_enu);
+    io::WriteGnssCsv((out / "gnss0_llh.csv").string(), io::GnssFileKind::kLatLonHeight, gnss_llh,
+                     &outliers);
+    io::WriteGroundTruthCsv((out / "groundtruth.csv").string(), ground_truth);
   }
   SimulationSummary summary;
   summary.frames = frame_times.size();

@@ -1,4 +1,4 @@
-#include "optinav/sim/spline.h"
+#include "optinav/sim/internal/spline.h"
 
 #include <algorithm>
 #include <array>

@@ -1,4 +1,4 @@
-#include "optinav/sim/texture.h"
+#include "optinav/sim/internal/texture.h"
 
 #include <algorithm>
 #include <cmath>

@@ -176,8 +176,9 @@ std::vector<DroneWaypoint> RandomDroneWaypoints(const RandomDroneRouteOptions& o
 
 BodyTrajectory MakeCarTrajectory(const CarRouteOptions& options, const HeightFunction& ground,
                                  int64_t start_ns) {
-  // Stop conditions of the document's Table 2, in NED (x north, y east, psi clockwise from
-  // north); |qw| = |cos(psi / 2)| of the car's attitude quaternion.
+  // Stop conditions of the car route of the AirSim weather dataset (SEEDS.md part 1; its Table 2),
+  // in NED (x north, y east, psi clockwise from north); |qw| = |cos(psi / 2)| of the car's attitude
+  // quaternion.
   enum class Until { kXAbove, kXBelow, kYAbove, kYBelow, kQwBelow, kQwAbove, kStopped };
   struct Step {
     double throttle, steering;
@@ -196,7 +197,7 @@ BodyTrajectory MakeCarTrajectory(const CarRouteOptions& options, const HeightFun
                         {0, 0, Until::kStopped, 0}};
   // Vehicle model: v' = 4 throttle - 0.35 v (8 m/s top speed at throttle 0.7), handbrake
   // -6 m/s^2; kinematic bicycle with 2.9 m wheelbase, 17.8 deg full steering lock (an 18.5 m
-  // turn radius at steering 0.5, which reproduces the document's route lengths), steering
+  // turn radius at steering 0.5, which reproduces the dataset's route lengths), steering
   // rate limited to 0.3 rad/s.
   const double dt = 0.01, wheelbase = 2.9, max_steer = 0.311, steer_rate = 0.3;
   const double hold_s = 1.0, sample_dt = 0.25;

@@ -19,7 +19,7 @@
 #include <Eigen/Core>
 
 #include "optinav/geometry/lie.h"
-#include "optinav/sim/spline.h"
+#include "optinav/sim/internal/spline.h"
 
 namespace optinav::sim {
 
@@ -95,11 +95,12 @@ struct RandomDroneRouteOptions {
 std::vector<DroneWaypoint> RandomDroneWaypoints(const RandomDroneRouteOptions& options,
                                                 const HeightFunction& ground, uint64_t seed);
 
-// The weather document's car route (its Table 2): throttle/steering steps with stop conditions
-// in AirSim's NED coordinates (x north, y east; the car starts at the origin facing north),
-// driven through a kinematic bicycle model with a speed-dependent turn radius, then smoothed
-// into a spline sampled every 0.25 s. The document's numbers give ~745 m in the urban world and
-// ~875 m in the terrain world; those differ only in the two end conditions below.
+// The car route of the AirSim weather dataset (SEEDS.md part 1; its Table 2): throttle/steering
+// steps with stop conditions in AirSim's NED coordinates (x north, y east; the car starts at the
+// origin facing north), driven through a kinematic bicycle model with a speed-dependent turn
+// radius, then smoothed into a spline sampled every 0.25 s. The dataset's figures give ~745 m in
+// the urban world and ~875 m in the terrain world; those differ only in the two end conditions
+// below.
 struct CarRouteOptions {
   double leg3_end_x_m = -110;   // "forward until x = -110" (urban) / -140 (terrain)
   double leg4_end_y_m = 16.5;   // "forward until y = 16.5" (urban) / -30 (terrain)

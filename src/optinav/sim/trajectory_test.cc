@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "optinav/sim/sensors.h"
+#include "optinav/util/testing.h"
 
 namespace optinav::sim {
 namespace {
@@ -133,7 +134,7 @@ TEST(Trajectory, IntegratingNoiseFreeImuReproducesGroundTruth) {
   EXPECT_LT(rot_err, 1e-4);
 }
 
-TEST(Trajectory, CarRoutesHaveTheDocumentsLengths) {
+TEST(Trajectory, CarRoutesHaveTheWeatherDatasetLengths) {
   const auto flat = [](double, double) { return 0.0; };
   const auto hills = [](double x, double y) { return 4 * std::sin(x / 30) * std::cos(y / 40); };
   const BodyTrajectory urban = MakeCarTrajectory(CarRouteOptions::Urban(), flat, kStart);
@@ -189,8 +190,10 @@ TEST(Sensors, GnssNoiseOutliersAndOutages) {
   EXPECT_EQ(in_outage, 0);
   EXPECT_GT(outliers, 3);
   EXPECT_NEAR(rms_per_axis, 0.5, 0.1);
-  EXPECT_THROW(ParseOutlierSpec("0.1", "--gnss-outliers"), Error);
-  EXPECT_THROW(ParseOutageSpec("a:3", "--gnss-outage"), Error);
+  EXPECT_ERROR(ParseOutlierSpec("0.1", "--gnss-outliers"), {.field = "--gnss-outliers"},
+               "expected FRACTION:MAGNITUDE_M, e.g. 0.05:20, got '0.1'");
+  EXPECT_ERROR(ParseOutageSpec("a:3", "--gnss-outage"), {.field = "--gnss-outage"},
+               "expected START_S:DURATION_S, e.g. 30:10, got 'a:3'");
   EXPECT_EQ(ParseOutageSpec("30:10", "x").duration_s, 10);
 }
 

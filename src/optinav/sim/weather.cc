@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
 
+#include "optinav/sim/internal/texture.h"
 #include "optinav/util/error.h"
 
 namespace optinav::sim {

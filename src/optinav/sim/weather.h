@@ -1,6 +1,6 @@
-// Weather for synthetic or real camera images: the weather-dataset document's conditions
-// (rain, snow, falling leaves, fog, dust storm, and road wetness/snow/leaves), at an intensity of
-// 0..100 % (the document's presets are 25, 50, 75, 100).
+// Weather for synthetic or real camera images: the conditions of the AirSim weather dataset,
+// SEEDS.md part 1 (rain, snow, falling leaves, fog, dust storm, and road wetness/snow/leaves), at
+// an intensity of 0..100 % (the dataset's presets are 25, 50, 75, 100).
 //
 // Two parts:
 //  1. Image effects, ApplyWeather(): work on ANY rendered camera image given its per-pixel depth,
@@ -32,7 +32,6 @@
 
 #include "optinav/camera/camera.h"
 #include "optinav/geometry/lie.h"
-#include "optinav/sim/texture.h"
 
 namespace optinav::sim {
 

@@ -8,6 +8,7 @@
 
 #include "optinav/sim/renderer.h"
 #include "optinav/sim/rig.h"
+#include "optinav/util/testing.h"
 
 namespace optinav::sim {
 namespace {
@@ -195,7 +196,9 @@ TEST(Weather, RejectsMismatchedInputs) {
   camera::PinholeCamera cam = CarRig().Scaled(0.4).left;
   cv::Mat img(cam.height, cam.width, CV_8UC3, cv::Scalar::all(0));
   cv::Mat depth(cam.height + 1, cam.width, CV_32F, cv::Scalar(5));
-  EXPECT_THROW(ApplyWeather(img, depth, cam, Rigid3d(), 0, ParseWeather("fog:50"), 1), Error);
+  EXPECT_ERROR(ApplyWeather(img, depth, cam, Rigid3d(), 0, ParseWeather("fog:50"), 1),
+               {.field = "weather"},
+               "depth of the same size (got 320x240 type 16, 320x241 type 5)");
 }
 
 }  // namespace

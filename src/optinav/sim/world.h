@@ -1,8 +1,9 @@
 // Synthetic worlds: textured triangle meshes with a ground height function.
 //
-//  urban    a suburban block around the weather document's car route: a road with lane
-//           markings and sidewalks along the route, box buildings with windowed facades and
-//           roofs, parked cars, street lights, street trees, a park, and a forest ring.
+//  urban    a suburban block around the car route of the AirSim weather dataset (SEEDS.md
+//           part 1): a road with lane markings and sidewalks along the route, box buildings with
+//           windowed facades and roofs, parked cars, street lights, street trees, a park, and a
+//           forest ring.
 //  terrain  rough open ground: a height field with hills and valleys, patchy grass and soil,
 //           rocks, a few trees, and a mountain ridge around it.
 //  ortho    flat ground (z = 0) textured with a georeferenced orthophoto (GeoTIFF), placed in
@@ -19,7 +20,7 @@
 #include <Eigen/Geometry>
 
 #include "optinav/geo/geo.h"
-#include "optinav/sim/texture.h"
+#include "optinav/sim/internal/texture.h"
 #include "optinav/sim/trajectory.h"
 #include "optinav/sim/weather.h"
 

@@ -30,20 +30,20 @@ TEST(Config, MissingKeyNamesFileAndKey) {
 
 TEST(Config, WrongTypeAndWrongLengthAndNan) {
   const auto f = ParseYamlString("a: hello\nv: [1, 2]\nn: [1, .nan]\n", "x.yaml");
-  EXPECT_THROW(YamlGet<int>(f, f.root, "a"), Error);
-  EXPECT_THROW(YamlGetNumbers(f, f.root, "v", 3), Error);
-  EXPECT_THROW(YamlGetNumbers(f, f.root, "n"), Error);
-  try {
-    YamlGetNumbers(f, f.root, "v", 3);
-  } catch (const Error& e) {
-    EXPECT_EQ(e.context().line, 2);
-  }
+  EXPECT_ERROR(YamlGet<int>(f, f.root, "a"), {.file = "x.yaml", .line = 1, .field = "a"},
+               "cannot convert value 'hello'");
+  EXPECT_ERROR(YamlGetNumbers(f, f.root, "v", 3), {.file = "x.yaml", .line = 2, .field = "v"},
+               "expected 3 numbers, found 2");
+  EXPECT_ERROR(YamlGetNumbers(f, f.root, "n"), {.file = "x.yaml", .line = 3, .field = "n"},
+               "element 1 is not finite");
 }
 
 TEST(Config, SyntaxErrorAndMissingFile) {
-  EXPECT_THROW(ParseYamlString("a: [1, 2\n", "bad.yaml"), Error);
-  EXPECT_THROW(ParseYamlString("", "empty.yaml"), Error);
-  EXPECT_THROW(LoadYamlFile("/nonexistent/optinav.yaml"), Error);
+  EXPECT_ERROR(ParseYamlString("a: [1, 2\n", "bad.yaml"), {.file = "bad.yaml", .line = 2},
+               "YAML syntax error");
+  EXPECT_ERROR(ParseYamlString("", "empty.yaml"), {.file = "empty.yaml"}, "empty YAML document");
+  EXPECT_ERROR(LoadYamlFile("/nonexistent/optinav.yaml"), {.file = "/nonexistent/optinav.yaml"},
+               "cannot open file");
   const auto dir = testing::MakeTempDir("config");
   const auto path = testing::WriteFile(dir / "ok.yaml", "k: 3\n");
   EXPECT_EQ(YamlGet<int>(LoadYamlFile(path), LoadYamlFile(path).root, "k"), 3);

@@ -1,10 +1,12 @@
-// A bounded, closable, thread-safe FIFO queue joining pipeline modules, and a one-slot mailbox
+// A bounded, closable, thread-safe FIFO queue joining pipeline modules, and a numbered mailbox
 // for feedback between them.
 #pragma once
 
 #include <condition_variable>
 #include <cstddef>
+#include <cstdint>
 #include <deque>
+#include <map>
 #include <mutex>
 #include <optional>
 
@@ -72,34 +74,43 @@ class ThreadSafeQueue {
   bool closed_ = false;
 };
 
-// A thread-safe one-slot mailbox: the writer updates the pending message in place (overwrite or
-// merge into what the reader has not taken yet); the reader takes it when there is one, without
-// ever waiting for the writer.
+// Numbered messages from one thread to another, taken by number: the reader asks for message n
+// and waits until the writer has posted it, so what the reader sees depends only on the message
+// numbers, never on how far the writer has got (a pipeline's feedback then gives the same result
+// whether its threads run in step or not). Messages are taken once, in increasing order; older
+// ones are dropped when a newer one is taken. Cancel() wakes every waiter (nullopt) for good.
 template <typename T>
-class Mailbox {
+class NumberedMailbox {
  public:
-  // `update(T&)` runs under the lock on the pending message (default-constructed when none).
-  template <typename F>
-  void Update(F&& update) {
+  void Post(uint64_t number, T message) {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (!pending_) pending_.emplace();
-    update(*pending_);
+    messages_[number] = std::move(message);
+    posted_.notify_all();
   }
-  void Post(T message) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    pending_ = std::move(message);
-  }
-  // The pending message (then none is pending), or nullopt. Never blocks on an empty box.
-  std::optional<T> Take() {
-    std::lock_guard<std::mutex> lock(mutex_);
-    std::optional<T> message = std::move(pending_);
-    pending_.reset();
+  // Blocks until message `number` is posted; nullopt once cancelled.
+  std::optional<T> WaitFor(uint64_t number) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    posted_.wait(lock, [&] { return cancelled_ || messages_.count(number) > 0; });
+    if (cancelled_) return std::nullopt;
+    T message = std::move(messages_.at(number));
+    messages_.erase(messages_.begin(), messages_.upper_bound(number));
     return message;
+  }
+  void Cancel() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    cancelled_ = true;
+    posted_.notify_all();
+  }
+  size_t pending() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return messages_.size();
   }
 
  private:
-  std::mutex mutex_;
-  std::optional<T> pending_;
+  mutable std::mutex mutex_;
+  std::condition_variable posted_;
+  std::map<uint64_t, T> messages_;
+  bool cancelled_ = false;
 };
 
 }  // namespace optinav

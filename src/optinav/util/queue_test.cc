@@ -1,5 +1,6 @@
 #include "optinav/util/queue.h"
 
+#include <chrono>
 #include <cstdlib>
 #include <thread>
 #include <vector>
@@ -34,6 +35,37 @@ TEST(ThreadSafeQueue, CloseDrainsThenStops) {
   EXPECT_EQ(q.Pop(), 1);
   EXPECT_EQ(q.Pop(), std::nullopt);
   EXPECT_EQ(q.TryPop(), std::nullopt);
+}
+
+TEST(NumberedMailbox, ReaderGetsTheNumberedMessageWhateverTheWriterIsAt) {
+  NumberedMailbox<int> box;
+  // The writer is ahead: message 1 is taken although 2 and 3 were posted after it.
+  box.Post(1, 10);
+  box.Post(2, 20);
+  box.Post(3, 30);
+  EXPECT_EQ(box.WaitFor(1), 10);
+  EXPECT_EQ(box.pending(), 2u);
+  EXPECT_EQ(box.WaitFor(3), 30);  // 2 is dropped: messages are taken in increasing order
+  EXPECT_EQ(box.pending(), 0u);
+  // The writer is behind: the reader waits for it.
+  std::thread writer([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    box.Post(4, 40);
+  });
+  EXPECT_EQ(box.WaitFor(4), 40);
+  writer.join();
+}
+
+TEST(NumberedMailbox, CancelWakesAWaitingReader) {
+  NumberedMailbox<int> box;
+  std::thread canceller([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    box.Cancel();
+  });
+  EXPECT_EQ(box.WaitFor(7), std::nullopt);
+  canceller.join();
+  box.Post(8, 80);
+  EXPECT_EQ(box.WaitFor(8), std::nullopt);  // cancelled for good
 }
 
 TEST(ProgressBar, SilentWhenNotATerminalOrDisabled) {

@@ -19,24 +19,28 @@ namespace optinav {
 
 // `source(emit)` produces items in order through `emit`, which returns false once the pipeline
 // stopped (the source should then return). `stage` maps each item, `sink` consumes the results
-// in order. `capacity`: of each queue (> 0).
+// in order. `capacity`: of each queue (> 0). `on_fail`, when set, runs once on the first error
+// (in the failing thread), e.g. to wake a stage that waits on something other than the queues.
 template <typename A, typename B>
 void RunThreeStages(size_t capacity,
                     const std::function<void(const std::function<bool(A)>& emit)>& source,
-                    const std::function<B(A)>& stage, const std::function<void(B)>& sink) {
+                    const std::function<B(A)>& stage, const std::function<void(B)>& sink,
+                    const std::function<void()>& on_fail = nullptr) {
   ThreadSafeQueue<A> first(capacity);
   ThreadSafeQueue<B> second(capacity);
   std::mutex error_mutex;
   std::exception_ptr error;
   std::atomic<bool> failed = false;
   auto fail = [&](std::exception_ptr e) {
+    bool first_error = false;
     {
       std::lock_guard<std::mutex> lock(error_mutex);
-      if (!error) error = e;
+      if (!error) error = e, first_error = true;
     }
     failed = true;
     first.Close();
     second.Close();
+    if (first_error && on_fail) on_fail();
   };
   auto run_source = [&] {
     try {

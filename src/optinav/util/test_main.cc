@@ -3,9 +3,11 @@
 #include <cstdlib>
 #include <fstream>
 #include <random>
+#include <typeinfo>
 
 #include <gtest/gtest.h>
 
+#include "optinav/util/error.h"
 #include "optinav/util/logging.h"
 #include "optinav/util/testing.h"
 
@@ -44,6 +46,55 @@ std::string ReadFile(const std::filesystem::path& path) {
   EXPECT_TRUE(in.good()) << "cannot read " << path;
   return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
 }
+
+namespace internal {
+
+void ExpectError(const char* test_file, int test_line, const char* statement_text,
+                 const std::function<void()>& statement, const ExpectedError& expected,
+                 const std::string& substring) {
+  try {
+    statement();
+  } catch (const Error& e) {
+    const ErrorContext& c = e.context();
+    std::string mismatch;
+    if (expected.file) {
+      // A suffix on a path-component boundary: "imu0/data.csv" matches "/tmp/x/imu0/data.csv".
+      const std::string& want = *expected.file;
+      const bool ok =
+          want.empty() ? c.file.empty()
+                       : c.file == want || (c.file.ends_with(want) && c.file.size() > want.size() &&
+                                            c.file[c.file.size() - want.size() - 1] == '/');
+      if (!ok) mismatch += "\n  file: expected suffix '" + want + "', got '" + c.file + "'";
+    }
+    if (expected.line && c.line != *expected.line) {
+      mismatch += "\n  line: expected " + std::to_string(*expected.line) + ", got " +
+                  std::to_string(c.line);
+    }
+    if (expected.field && c.field != *expected.field) {
+      mismatch += "\n  field: expected '" + *expected.field + "', got '" + c.field + "'";
+    }
+    if (e.message().find(substring) == std::string::npos) {
+      mismatch += "\n  message: expected to contain '" + substring + "'";
+    }
+    if (!mismatch.empty()) {
+      ADD_FAILURE_AT(test_file, test_line)
+          << statement_text << " threw optinav::Error \"" << e.what() << "\"" << mismatch;
+    }
+    return;
+  } catch (const std::exception& e) {
+    ADD_FAILURE_AT(test_file, test_line) << statement_text << " threw a " << typeid(e).name()
+                                         << " (\"" << e.what() << "\"), expected optinav::Error";
+    return;
+  } catch (...) {
+    ADD_FAILURE_AT(test_file, test_line)
+        << statement_text << " threw a non-std exception, expected optinav::Error";
+    return;
+  }
+  ADD_FAILURE_AT(test_file, test_line)
+      << statement_text << " threw nothing, expected optinav::Error";
+}
+
+}  // namespace internal
 
 }  // namespace optinav::testing
 

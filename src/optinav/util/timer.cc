@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "optinav/util/statistics.h"
+
 namespace optinav {
 
 void TimingStats::Add(const std::string& stage, double seconds) {
@@ -24,11 +26,10 @@ TimingSummary TimingStats::Summary(const std::string& stage) const {
   std::sort(v.begin(), v.end());
   for (double x : v) s.total_s += x;
   s.mean_s = s.total_s / v.size();
-  s.median_s = v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
-  // Nearest-rank percentile.
-  const size_t rank = static_cast<size_t>(std::ceil(0.95 * v.size()));
-  s.p95_s = v[std::max<size_t>(rank, 1) - 1];
   s.max_s = v.back();
+  // The same quantiles as every other report (util/statistics.h): p95 interpolates.
+  s.median_s = Quantile(v, 0.5);
+  s.p95_s = Quantile(std::move(v), 0.95);
   return s;
 }
 

@@ -1,4 +1,5 @@
-// Wall-clock timing and per-stage statistics (median, p95) for timing reports.
+// Wall-clock timing and per-stage statistics (median, p95) for timing reports. The quantiles
+// are util/statistics.h's (linear interpolation, as numpy).
 #pragma once
 
 #include <chrono>

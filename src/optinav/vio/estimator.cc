@@ -10,7 +10,7 @@
 #include "optinav/util/config.h"
 #include "optinav/util/error.h"
 #include "optinav/util/logging.h"
-#include "optinav/vio/vi_alignment.h"
+#include "optinav/vio/internal/vi_alignment.h"
 
 namespace optinav::vio {
 
@@ -47,6 +47,8 @@ std::string VioOptions::Check() const {
   if (!(max_weak_tracking_s >= 0)) return "max_weak_tracking_s must be >= 0";
   if (!(max_speed_m_s > 0) || !(max_gyro_bias > 0) || !(max_accel_bias > 0))
     return "divergence limits must be > 0";
+  if (feedback_lag_frames < 1 || feedback_lag_frames > 16)
+    return "pipeline.feedback_lag_frames must be in [1, 16]";
   return "";
 }
 
@@ -146,6 +148,7 @@ VioOptions LoadVioOptions(const std::string& path) {
         {"max_speed_m_s", &o.max_speed_m_s},
         {"max_gyro_bias", &o.max_gyro_bias},
         {"max_accel_bias", &o.max_accel_bias}}},
+      {"pipeline", {{"feedback_lag_frames", &o.feedback_lag_frames}}},
   };
   for (const auto& kv : root) {
     const std::string key = kv.first.as<std::string>();
@@ -539,13 +542,21 @@ std::optional<FramePacket> VioEstimator::RunFrontend(int64_t t_ns, const cv::Mat
     timing_.Add("total", work.ElapsedSeconds());
     return std::nullopt;
   }
-  // The backend's latest feedback (the previous frame's when called in order).
-  if (std::optional<BackendFeedback> feedback = feedback_mailbox_.Take()) {
+  // The backend's feedback after packet n - lag (waiting for it when the backend is behind).
+  const uint64_t lag = static_cast<uint64_t>(options_.feedback_lag_frames);
+  double wait_s = 0;
+  if (packets_ >= lag) {
+    const Timer wait;
+    std::optional<BackendFeedback> feedback = feedback_mailbox_.WaitFor(packets_ - lag);
+    wait_s = wait.ElapsedSeconds();
+    timing_.Add("frontend_wait", wait_s);
+    if (!feedback) throw Error("vio: the backend stopped (feedback cancelled)");
     if (feedback->rejected_tracks) frontend_.Drop(*feedback->rejected_tracks);
     feedback->rejected_tracks.reset();
     feedback_ = std::move(*feedback);
   }
   FramePacket packet;
+  packet.number = packets_++;
   packet.t_ns = t_ns;
   packet.prev_t_ns = prev_frame_ns_;
   std::optional<Eigen::Quaterniond> cur_from_prev;
@@ -571,7 +582,7 @@ std::optional<FramePacket> VioEstimator::RunFrontend(int64_t t_ns, const cv::Mat
   prev_frame_ns_ = t_ns;
   packet.imu = std::move(imu_for_backend_);
   imu_for_backend_.clear();
-  packet.frontend_s = work.ElapsedSeconds();
+  packet.frontend_s = work.ElapsedSeconds() - wait_s;  // work only
   return packet;
 }
 
@@ -582,12 +593,10 @@ void VioEstimator::PostFeedback(bool with_rejected_tracks) {
   // The rejected set only grows between resets (Lose resets posted_rejected_).
   const bool rejected_changed =
       with_rejected_tracks && backend_.rejected_tracks().size() != posted_rejected_;
-  feedback_mailbox_.Update([&](BackendFeedback& pending) {
-    pending.initialized = feedback.initialized;
-    pending.bias = feedback.bias;
-    // Kept until taken: a later message without a set does not erase it.
-    if (rejected_changed) pending.rejected_tracks = backend_.rejected_tracks();
-  });
+  pending_feedback_.initialized = feedback.initialized;
+  pending_feedback_.bias = feedback.bias;
+  // Kept until sent: a later update of the same packet without a set does not erase it.
+  if (rejected_changed) pending_feedback_.rejected_tracks = backend_.rejected_tracks();
   if (rejected_changed) posted_rejected_ = backend_.rejected_tracks().size();
 }
 
@@ -659,6 +668,7 @@ std::optional<FrameEstimate> VioEstimator::RunBackend(FramePacket packet) {
     return FrameEstimate{estimate, features.keyframe, gnss_ ? gnss_->alignment() : std::nullopt};
   }();
   PostFeedback(/*with_rejected_tracks=*/false);
+  feedback_mailbox_.Post(packet.number, std::exchange(pending_feedback_, {}));
   return result;
 }
 

@@ -8,10 +8,12 @@
 //   RunBackend (backend side: initialisation, the sliding window, failure handling, GNSS) on it.
 // ProcessFrame runs both in order. The backend's feedback to the frontend (whether it is
 // initialised, its newest bias for the gyro prediction and the preintegration, the track ids it
-// rejected) goes through a mailbox that RunFrontend reads at its start when there is a message:
-// called in order (ProcessFrame) the frontend always sees the previous frame's backend result,
-// exactly as one sequential loop; from two threads it sees the latest one posted. The backend
-// re-preintegrates the IMU when the packet's bias is not its current one.
+// rejected) is numbered by packet: the frontend step of packet n uses the backend's state after
+// packet n - feedback_lag_frames, waiting for it when the backend is behind. What the frontend
+// sees therefore depends on packet numbers only, never on how busy the threads are: the threaded
+// pipeline gives exactly the sequential result, whatever the load (a slow backend makes the
+// frontend wait instead of tracking with stale feedback). The backend re-preintegrates the IMU
+// when the packet's bias is not its current one (with a lag above 1).
 // Thread use: RunFrontend and AddImu from one thread, RunBackend, AddGnss and Finish from one
 // (possibly other) thread; the accessors below after both stopped.
 //
@@ -50,10 +52,10 @@
 #include "optinav/camera/camera.h"
 #include "optinav/util/queue.h"
 #include "optinav/util/timer.h"
-#include "optinav/vio/backend.h"
-#include "optinav/vio/frontend.h"
 #include "optinav/vio/gnss_fusion.h"
-#include "optinav/vio/loop_closure.h"
+#include "optinav/vio/internal/backend.h"
+#include "optinav/vio/internal/frontend.h"
+#include "optinav/vio/internal/loop_closure.h"
 
 namespace optinav::vio {
 
@@ -102,6 +104,12 @@ struct VioOptions {
   double max_speed_m_s = 60.0;
   double max_gyro_bias = 0.3;   // rad/s
   double max_accel_bias = 1.5;  // m/s^2
+  // Pipeline (YAML pipeline.feedback_lag_frames): the frontend step of packet n uses the
+  // backend's feedback after packet n - this (>= 1). 1 is one sequential loop (in threaded mode
+  // the frontend of a frame then waits for the backend of the previous one); 2 lets the frontend
+  // of frame n run while the backend solves frame n - 1, with a one-frame older bias and rejected
+  // tracks. Either way, threaded and sequential runs give the same result (docs/VIO.md).
+  int feedback_lag_frames = 1;
 
   std::string Check() const;
 };
@@ -124,6 +132,7 @@ struct FrameEstimate {
 
 // The frontend step's result: what the backend step needs of a frame.
 struct FramePacket {
+  uint64_t number = 0;  // the frontend's packet count before this one (feedback numbering)
   int64_t t_ns = 0;
   FrontendOutput features;
   std::optional<int64_t> prev_t_ns;    // the previous frame's time (the frontend's)
@@ -163,6 +172,9 @@ class VioEstimator {
   std::optional<FrameEstimate> RunBackend(FramePacket packet);
   // Closes an open lost interval at the end of the data.
   void Finish();
+  // Wakes a RunFrontend waiting for feedback that will never come (the backend thread failed or
+  // stopped); RunFrontend then throws. Call from any thread.
+  void CancelFeedbackWait() { feedback_mailbox_.Cancel(); }
   // Estimates of earlier frames made available by the last RunBackend (the frames of a
   // successful in-motion alignment window, in time order, all before that call's frame); the
   // caller takes them once (backend thread).
@@ -187,6 +199,7 @@ class VioEstimator {
   bool MotionInitStep(const FramePacket& packet);
   void ResetMotionInit();
   void Lose(int64_t t_ns, const std::string& reason);
+  // Updates the feedback message of the packet being processed (sent at the end of RunBackend).
   void PostFeedback(bool with_rejected_tracks);
   // The IMU buffers: one per side, fed with the same samples in the same order.
   static void AppendImu(const TimedImuSample& sample, double keep_s,
@@ -201,17 +214,19 @@ class VioEstimator {
   ImuNoise imu_noise_;
   VioOptions options_;
   TimingStats timing_;  // thread-safe, written by both sides
-  Mailbox<BackendFeedback> feedback_mailbox_;
+  NumberedMailbox<BackendFeedback> feedback_mailbox_;
   // Frontend side.
   StereoFrontend frontend_;
   std::deque<TimedImuSample> imu_;
   std::vector<TimedImuSample> imu_for_backend_;  // accepted since the last packet
   std::optional<int64_t> prev_frame_ns_;
   BackendFeedback feedback_;  // the latest taken from the mailbox (rejected ids not kept)
+  uint64_t packets_ = 0;      // packets made
   // Backend side.
   SlidingWindowBackend backend_;
   std::deque<TimedImuSample> backend_imu_;
-  size_t posted_rejected_ = 0;  // size of the rejected-track set last posted
+  size_t posted_rejected_ = 0;        // size of the rejected-track set last posted
+  BackendFeedback pending_feedback_;  // this packet's message, posted at the end of RunBackend
   std::vector<LostInterval> lost_;
   std::optional<int64_t> lost_since_ns_;
   std::optional<std::string> lost_reason_;

@@ -1,4 +1,4 @@
-#include "optinav/vio/factors.h"
+#include "optinav/vio/internal/factors.h"
 
 #include <algorithm>
 #include <cstdio>

@@ -1,4 +1,4 @@
-#include "optinav/vio/frontend.h"
+#include "optinav/vio/internal/frontend.h"
 
 #include <cstdio>
 #include <map>

@@ -296,8 +296,8 @@ void GnssFusion::OnFrame(const StateEstimate& estimate, SlidingWindowBackend* ba
       Use(s, backend);
       continue;
     }
-    // The document's baseline: measurements linearly interpolated to the frame times between
-    // this sample and the previous one.
+    // The baseline of the Kimera-VIO GNSS study (SEEDS.md part 2): measurements linearly
+    // interpolated to the frame times between this sample and the previous one.
     if (last_ready_ && (s.t_ns - last_ready_->t_ns) * 1e-9 <= options_.max_interpolation_gap_s) {
       for (int64_t t : frames_waiting_) {
         if (t < last_ready_->t_ns || t > s.t_ns) continue;

@@ -5,8 +5,9 @@
 //   - A sample at time t becomes a factor on the newest window state at or before t, with the
 //     IMU preintegrated from that state to t (not snapped to a frame):
 //       r = (Rz(yaw) (p_i + v_i dt + g dt^2 / 2 + R_i dp + R_i dR lever) + t_enu - z) / sigma
-//     with first-order bias corrections of dp and dR. The GNSS-VIO document's baseline, the
-//     sample linearly interpolated to frame times, is kept as TimeMode::kFrameInterpolated.
+//     with first-order bias corrections of dp and dR. The baseline of the Kimera-VIO GNSS study
+//     (SEEDS.md part 2), the sample linearly interpolated to frame times, is kept as
+//     TimeMode::kFrameInterpolated.
 //   - The alignment is initialised once the trajectory spans init_min_distance_m horizontally and
 //     the yaw is known to init_max_yaw_sigma_rad or init_max_yaw_effect_m (RANSAC over pairs of
 //     samples, then weighted least squares on the inliers; the samples older than the window become
@@ -30,7 +31,7 @@
 
 #include <Eigen/Core>
 
-#include "optinav/vio/backend.h"
+#include "optinav/vio/internal/backend.h"
 
 namespace optinav::vio {
 

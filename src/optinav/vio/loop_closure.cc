@@ -1,4 +1,4 @@
-#include "optinav/vio/loop_closure.h"
+#include "optinav/vio/internal/loop_closure.h"
 
 #include <algorithm>
 #include <cmath>

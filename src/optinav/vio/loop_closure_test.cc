@@ -1,7 +1,7 @@
 // Loop closure: option checks, corrections without loops, and a simulated flight around a
 // square that returns to its start (stereo-only VIO): the loops found must agree with the ground
 // truth and the corrected trajectory must beat the odometry.
-#include "optinav/vio/loop_closure.h"
+#include "optinav/vio/internal/loop_closure.h"
 
 #include <cstdio>
 
@@ -30,7 +30,8 @@ TEST(LoopClosure, ChecksOptions) {
   EXPECT_NE(o.Check().find("loop_consistency_m"), std::string::npos);
   o = {};
   o.max_view_angle_deg = 200;
-  EXPECT_THROW(LoopCloser(camera::StereoRig{}, Rigid3d::Identity(), o), Error);
+  EXPECT_ERROR(LoopCloser(camera::StereoRig{}, Rigid3d::Identity(), o), {.field = "loop_closure"},
+               "loop_closure.max_view_angle_deg must be in (0, 180]");
 }
 
 TEST(LoopClosure, NoLoopNoCorrection) {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <exception>
 #include <filesystem>
@@ -16,6 +17,7 @@
 #include "optinav/util/error.h"
 #include "optinav/util/logging.h"
 #include "optinav/util/stages.h"
+#include "optinav/util/timer.h"
 
 namespace optinav::vio {
 
@@ -69,6 +71,7 @@ struct StereoPair {
 // What the frontend thread hands to the backend thread: the GNSS samples up to the frame (in
 // time order, before it) and the frame's packet (none when the frame was skipped).
 struct TrackedPacket {
+  Timer since_frame_in;  // started when the frontend step took the frame
   std::vector<GnssSample> gnss;
   std::optional<FramePacket> frame;
   cv::Mat left, right;  // for loop closure
@@ -117,10 +120,11 @@ VioRunResult RunOnPairs(const camera::StereoRig& rig, const Rigid3d& body_from_c
     else
       closer.emplace(rig, body_from_cam0, lc);
   }
-  TimingStats loop_timing;
+  TimingStats loop_timing;  // loop closure and the per-frame latency
   if (closer) closer->set_timing(&loop_timing);
   int track_initializations = 0;
-  auto record = [&](std::optional<FrameEstimate> e, const cv::Mat& left, const cv::Mat& right) {
+  auto record = [&](std::optional<FrameEstimate> e, const cv::Mat& left, const cv::Mat& right,
+                    const Timer& since_frame_in) {
     // Earlier frames first (an in-motion alignment window, output when it succeeds).
     std::vector<FrameEstimate> delayed = estimator.TakeDelayedEstimates();
     const FrameEstimate* first = !delayed.empty() ? &delayed.front() : e ? &*e : nullptr;
@@ -139,6 +143,14 @@ VioRunResult RunOnPairs(const camera::StereoRig& rig, const Rigid3d& body_from_c
       closer->AddKeyframe(e->state, left, right);
     }
     result.estimates.push_back(std::move(*e));
+    loop_timing.Add("latency", since_frame_in.ElapsedSeconds());
+  };
+  // An artificially slow backend (tests, benchmarks).
+  const auto backend = [&](FramePacket packet) {
+    if (options.injected_backend_delay_ms > 0 && packet.features.keyframe)
+      std::this_thread::sleep_for(
+          std::chrono::duration<double, std::milli>(options.injected_backend_delay_ms));
+    return estimator.RunBackend(std::move(packet));
   };
 
   if (!options.threaded) {
@@ -147,13 +159,16 @@ VioRunResult RunOnPairs(const camera::StereoRig& rig, const Rigid3d& body_from_c
       for (const GnssSample& s : packet.gnss) estimator.AddGnss(s);
       if (packet.left.empty()) return true;
       ++result.frames_processed;
-      record(estimator.ProcessFrame(packet.t_ns, packet.left, packet.right), packet.left,
-             packet.right);
+      const Timer frame_in;
+      std::optional<FramePacket> frame =
+          estimator.RunFrontend(packet.t_ns, packet.left, packet.right);
+      if (frame) record(backend(std::move(*frame)), packet.left, packet.right, frame_in);
       return true;
     });
   } else {
     // loader -> frontend -> backend, each in its own thread; the backend's feedback reaches the
-    // frontend through the estimator's mailbox.
+    // frontend through the estimator's numbered mailbox (the frontend waits for the feedback it
+    // needs, so the result is the sequential one); a failure wakes a waiting frontend.
     RunThreeStages<Packet, TrackedPacket>(
         8, load,
         [&](Packet p) {
@@ -169,8 +184,9 @@ VioRunResult RunOnPairs(const camera::StereoRig& rig, const Rigid3d& body_from_c
         },
         [&](TrackedPacket p) {
           for (const GnssSample& s : p.gnss) estimator.AddGnss(s);
-          if (p.frame) record(estimator.RunBackend(std::move(*p.frame)), p.left, p.right);
-        });
+          if (p.frame) record(backend(std::move(*p.frame)), p.left, p.right, p.since_frame_in);
+        },
+        [&] { estimator.CancelFeedbackWait(); });
   }
   estimator.Finish();
   result.lost = estimator.lost_intervals();
@@ -186,11 +202,11 @@ VioRunResult RunOnPairs(const camera::StereoRig& rig, const Rigid3d& body_from_c
   }
   for (const std::string& stage : estimator.timing().Stages())
     result.timing[stage] = estimator.timing().Summary(stage);
+  for (const std::string& stage : loop_timing.Stages())
+    result.timing[stage] = loop_timing.Summary(stage);
   if (closer) {
     result.loop_closure_ran = true;
     result.loops = closer->loops();
-    for (const std::string& stage : loop_timing.Stages())
-      result.timing[stage] = loop_timing.Summary(stage);
     if (!result.loops.empty()) {
       result.odometry = result.estimates;
       for (FrameEstimate& e : result.estimates) {
@@ -287,8 +303,8 @@ VioRunResult RunVioOnAirsim(const std::string& dataset_dir, const VioRunOptions&
     pairs.push_back({r.t_ns, left, right});
   }
   if (pairs.empty()) throw Error("no stereo image pairs in the recording", {.file = dataset_dir});
-  // The recording has no calibration: the document's rig (rectified pinhole, given field of
-  // view and baseline), image size from the first left image.
+  // The recording has no calibration: the rig of the AirSim weather dataset (SEEDS.md part 1:
+  // rectified pinhole, given field of view and baseline), image size from the first left image.
   const cv::Mat first = cv::imread(pairs.front().left, cv::IMREAD_GRAYSCALE);
   if (first.empty()) throw Error("cannot read image", {.file = pairs.front().left});
   camera::StereoRig rig;

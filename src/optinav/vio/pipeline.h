@@ -40,9 +40,13 @@ struct VioRunOptions {
   size_t max_frames = 0;  // 0: all
   // false: a listed but missing image is an Error; true: the frame is skipped with a warning.
   bool skip_missing_images = true;
-  // AirSim recordings carry no calibration: the weather document's rig (rectified pinhole).
+  // AirSim recordings carry no calibration: the rig of the AirSim weather dataset (SEEDS.md
+  // part 1: rectified pinhole).
   double airsim_hfov_deg = 90.0;
   double airsim_baseline_m = 0.52;
+  // Tests and benchmarks: the backend step sleeps this long on every keyframe (an artificially
+  // slow backend; the result must not change, only the latency).
+  double injected_backend_delay_ms = 0;
 };
 
 struct VioRunResult {
@@ -52,7 +56,11 @@ struct VioRunResult {
   // re-initialisation starts a new world frame; with an in-motion start its first estimates are
   // dated before the LostInterval's end_ns).
   std::vector<size_t> track_starts;
-  std::map<std::string, TimingSummary> timing;  // per module, seconds per frame
+  // Per module, seconds per frame; "latency": from the frontend step taking the frame to its
+  // pose out (waits for feedback and between the threads included; not the time a replayed
+  // frame spends queued before the frontend, which a live camera does not have; the delayed
+  // estimates of an in-motion start not counted).
+  std::map<std::string, TimingSummary> timing;
   size_t frames_total = 0, frames_processed = 0, frames_unpaired = 0;
   int initializations = 0;
   std::string first_init_kind;

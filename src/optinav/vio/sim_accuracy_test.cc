@@ -115,25 +115,27 @@ TEST(SimAccuracy, DroneStereoInertial) {
 }
 
 TEST(SimAccuracy, CarStereoOnly) {
-  // The document's urban route, first 21 s: 136 m straight, then the start of the first right
-  // turn (the straight alone hides the rotation drift that dominated the full route).
+  // The urban car route of the AirSim weather dataset (SEEDS.md part 1), first 21 s: 136 m
+  // straight, then the start of the first right turn (the straight alone hides the rotation drift
+  // that dominated the full route).
   const std::string dir = Simulate("car", "car", 21.0, 5.0, 20.0, 3);
   VioRunOptions options;
   options.vio.mode = VioMode::kStereo;
   const VioRunResult r = RunVioOnEuroc(dir, options);
   const Accuracy a = Evaluate(dir, r, /*se3=*/false);
-  // The document's ORB-SLAM3 stereo figure, 1.71 m mean error over 745 m, scaled to the route.
+  // The weather dataset's ORB-SLAM3 stereo figure, 1.71 m mean error over 745 m, scaled to the
+  // route.
   const double limit = 1.71 * a.path_m / 745.0;
   std::printf(
       "simulated car, urban, clear, stereo-only, 400x300: %zu poses, %zu lost; path "
-      "%.1f m, mean APE (first poses aligned) %.3f m (document scaled: %.3f m = 1.71 m x %.1f / "
-      "745; guard 1.5x), RMSE %.3f m\n",
+      "%.1f m, mean APE (first poses aligned) %.3f m (ORB-SLAM3 figure scaled: %.3f m = "
+      "1.71 m x %.1f / 745; guard 1.5x), RMSE %.3f m\n",
       a.poses, a.lost, a.path_m, a.ape_mean_m, limit, a.path_m, a.ape_rmse_m);
   EXPECT_EQ(a.lost, 0u);
   // A regression guard, not the acceptance (see docs/VIO.md for the full 762 m route).
   // On this segment the mean error was 1.01 m before the stereo-only keyframe thresholds and
   // outlier threshold (every frame a keyframe, 4 px outliers), 0.35 m after.
-  EXPECT_LT(a.ape_mean_m, 1.5 * limit) << "regression guard (1.5 x the scaled document figure)";
+  EXPECT_LT(a.ape_mean_m, 1.5 * limit) << "regression guard (1.5 x the scaled ORB-SLAM3 figure)";
 }
 
 }  // namespace

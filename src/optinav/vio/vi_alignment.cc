@@ -1,4 +1,4 @@
-#include "optinav/vio/vi_alignment.h"
+#include "optinav/vio/internal/vi_alignment.h"
 
 #include <cmath>
 

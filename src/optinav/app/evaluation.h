@@ -1,5 +1,6 @@
-// The evaluation job shared by `optinav eval` and `optinav demo`: read, associate, align,
-// compute APE or RPE, print a table, optionally write JSON and an SVG plot.
+// The trajectory evaluation shared by `optinav eval` and `optinav demo`: read, associate, align,
+// compute APE or RPE (evo's definitions, eval/metrics.h), format a table, optionally write the
+// statistics as JSON, an SVG plot and the aligned estimate.
 #pragma once
 
 #include <string>
@@ -9,7 +10,7 @@
 #include "optinav/eval/metrics.h"
 #include "optinav/io/trajectory_io.h"
 
-namespace optinav {
+namespace optinav::app {
 
 struct EvaluationSettings {
   enum class Metric { kApe, kRpe };
@@ -20,7 +21,11 @@ struct EvaluationSettings {
   eval::AlignmentOptions alignment;
   eval::PoseRelation relation = eval::PoseRelation::kTranslation;
   eval::RpeOptions rpe;  // used for kRpe (its relation is overwritten by `relation`)
+  // Optional outputs (empty: not written).
   std::string json_path, plot_path, plot_plane = "xy", aligned_out_path;
+
+  // Empty when valid, else a message that starts with the flag at fault ("--max-diff ...").
+  std::string Check() const;
 };
 
 struct EvaluationOutcome {
@@ -29,14 +34,15 @@ struct EvaluationOutcome {
   eval::AlignmentResult alignment;
   eval::ErrorSeries series;
   std::string title;    // "APE w.r.t. translation part (m)"
-  nlohmann::json json;  // the document written with --json
+  nlohmann::json json;  // the statistics written with json_path
 };
 
-// Runs the job; throws optinav::Error on bad input. Writes the optional outputs atomically.
+// Runs the evaluation; throws optinav::Error on invalid settings (Check()) and on bad input
+// (naming the file and line). Writes the optional outputs atomically.
 EvaluationOutcome RunEvaluation(const EvaluationSettings& settings);
 
 // The human-readable table (as evo prints it).
 std::string FormatEvaluationTable(const EvaluationSettings& settings,
                                   const EvaluationOutcome& outcome);
 
-}  // namespace optinav
+}  // namespace optinav::app

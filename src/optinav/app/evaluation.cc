@@ -1,11 +1,11 @@
-#include "optinav/exe/evaluation.h"
+#include "optinav/app/evaluation.h"
 
 #include <fmt/format.h>
 
 #include "optinav/io/text_parse.h"
 #include "optinav/report/trajectory_plot.h"
 
-namespace optinav {
+namespace optinav::app {
 namespace {
 
 std::string AlignmentDescription(const eval::AlignmentResult& a, size_t pairs) {
@@ -36,37 +36,12 @@ std::string AlignmentDescription(const eval::AlignmentResult& a, size_t pairs) {
   return s;
 }
 
-}  // namespace
-
-EvaluationOutcome RunEvaluation(const EvaluationSettings& st) {
-  using Metric = EvaluationSettings::Metric;
-  EvaluationOutcome out;
-  Trajectory ref = io::ReadTrajectory(st.ref_path, st.ref_read);
-  Trajectory est = io::ReadTrajectory(st.est_path, st.est_read);
-  out.ref_poses = ref.size();
-  out.est_poses = est.size();
-  out.synced = eval::Synchronize(std::move(ref), std::move(est), st.association);
-  out.alignment = eval::AlignTrajectory(out.synced.ref, &out.synced.est, st.alignment);
-  const std::string unit = eval::PoseRelationUnit(st.relation);
-  if (st.metric == Metric::kApe) {
-    out.series = eval::ComputeApe(out.synced.ref, out.synced.est, st.relation);
-    out.title = fmt::format("APE w.r.t. {}{}", eval::PoseRelationTitle(st.relation),
-                            unit.empty() ? " (unit-less)" : " (" + unit + ")");
-  } else {
-    eval::RpeOptions rpe = st.rpe;
-    rpe.relation = st.relation;
-    out.series = eval::ComputeRpe(out.synced.ref, out.synced.est, rpe);
-    out.title = fmt::format("RPE w.r.t. {}{} for delta = {} ({}), {} pairs",
-                            eval::PoseRelationTitle(st.relation),
-                            unit.empty() ? " (unit-less)" : " (" + unit + ")", rpe.delta,
-                            eval::DeltaUnitName(rpe.unit), rpe.all_pairs ? "all" : "consecutive");
-  }
-
+nlohmann::json StatisticsJson(const EvaluationSettings& st, const EvaluationOutcome& out) {
   const eval::Statistics& s = out.series.stats;
   nlohmann::json j;
-  j["metric"] = st.metric == Metric::kApe ? "ape" : "rpe";
+  j["metric"] = st.metric == EvaluationSettings::Metric::kApe ? "ape" : "rpe";
   j["pose_relation"] = eval::PoseRelationName(st.relation);
-  j["unit"] = unit;
+  j["unit"] = eval::PoseRelationUnit(st.relation);
   j["n"] = s.n;
   j["rmse"] = s.rmse;
   j["mean"] = s.mean;
@@ -91,21 +66,23 @@ EvaluationOutcome RunEvaluation(const EvaluationSettings& st) {
                       {"by_index", out.synced.by_index}};
   j["ref"] = st.ref_path;
   j["est"] = st.est_path;
-  if (st.metric == Metric::kRpe) {
+  if (st.metric == EvaluationSettings::Metric::kRpe) {
     j["delta"] = st.rpe.delta;
     j["delta_unit"] = eval::DeltaUnitName(st.rpe.unit);
     j["all_pairs"] = st.rpe.all_pairs;
   }
-  out.json = j;
+  return j;
+}
 
-  if (!st.json_path.empty()) io::WriteFileAtomically(st.json_path, j.dump(2) + "\n");
+void WriteOutputs(const EvaluationSettings& st, const EvaluationOutcome& out) {
+  if (!st.json_path.empty()) io::WriteFileAtomically(st.json_path, out.json.dump(2) + "\n");
   if (!st.plot_path.empty()) {
     report::ErrorPlotInput plot;
     plot.title = out.title;
     plot.subtitle = fmt::format("{} vs {} | alignment: {} | {} pairs", st.est_path, st.ref_path,
                                 AlignmentDescription(out.alignment, out.synced.ref.size()),
                                 out.synced.ref.size());
-    plot.unit = unit;
+    plot.unit = eval::PoseRelationUnit(st.relation);
     plot.ref = &out.synced.ref;
     plot.est = &out.synced.est;
     plot.series = &out.series;
@@ -117,6 +94,43 @@ EvaluationOutcome RunEvaluation(const EvaluationSettings& st) {
                         out.synced.est.has_timestamps() ? io::TrajectoryFormat::kTum
                                                         : io::TrajectoryFormat::kKitti);
   }
+}
+
+}  // namespace
+
+std::string EvaluationSettings::Check() const {
+  if (!(association.max_diff_s >= 0)) return "--max-diff must be >= 0";
+  if (plot_plane != "xy" && plot_plane != "xz" && plot_plane != "yz") {
+    return "--plot-plane must be xy, xz or yz, got '" + plot_plane + "'";
+  }
+  if (metric == Metric::kRpe) return rpe.Check();
+  return "";
+}
+
+EvaluationOutcome RunEvaluation(const EvaluationSettings& st) {
+  if (const std::string m = st.Check(); !m.empty()) throw Error(m);
+  EvaluationOutcome out;
+  Trajectory ref = io::ReadTrajectory(st.ref_path, st.ref_read);
+  Trajectory est = io::ReadTrajectory(st.est_path, st.est_read);
+  out.ref_poses = ref.size();
+  out.est_poses = est.size();
+  out.synced = eval::Synchronize(std::move(ref), std::move(est), st.association);
+  out.alignment = eval::AlignTrajectory(out.synced.ref, &out.synced.est, st.alignment);
+  const std::string unit = eval::PoseRelationUnit(st.relation);
+  const std::string unit_text = unit.empty() ? " (unit-less)" : " (" + unit + ")";
+  if (st.metric == EvaluationSettings::Metric::kApe) {
+    out.series = eval::ComputeApe(out.synced.ref, out.synced.est, st.relation);
+    out.title = fmt::format("APE w.r.t. {}{}", eval::PoseRelationTitle(st.relation), unit_text);
+  } else {
+    eval::RpeOptions rpe = st.rpe;
+    rpe.relation = st.relation;
+    out.series = eval::ComputeRpe(out.synced.ref, out.synced.est, rpe);
+    out.title = fmt::format("RPE w.r.t. {}{} for delta = {} ({}), {} pairs",
+                            eval::PoseRelationTitle(st.relation), unit_text, rpe.delta,
+                            eval::DeltaUnitName(rpe.unit), rpe.all_pairs ? "all" : "consecutive");
+  }
+  out.json = StatisticsJson(st, out);
+  WriteOutputs(st, out);
   return out;
 }
 
@@ -149,4 +163,4 @@ std::string FormatEvaluationTable(const EvaluationSettings& st, const Evaluation
   return t;
 }
 
-}  // namespace optinav
+}  // namespace optinav::app

@@ -1,0 +1,81 @@
+// Frame-to-map localization runs (`optinav map locate`): one frame with a prior, or a csv list of
+// frames with their own priors in one process (the map and its index are loaded once).
+#pragma once
+
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "optinav/geo/geo.h"
+#include "optinav/maploc/locator.h"
+
+namespace optinav::app {
+
+enum class LocateMethod { kAuto, kFeatures, kOrientationCorrelation };
+
+// "auto" | "features" | "oc"; nullopt for anything else.
+std::optional<LocateMethod> ParseLocateMethod(const std::string& name);
+
+struct MapLocateOptions {
+  std::string map_path;    // map database (SQLite)
+  std::string ortho_path;  // orthophoto, if moved since the build (orientation correlation)
+  LocateMethod method = LocateMethod::kAuto;
+  std::optional<geo::LatLon> prior;  // approximate position
+  double radius_m = 500;             // prior radius, also around each predicted position
+  // Predicted positions (no prior needed): the last fix moved max_travel_m along bearing_deg and
+  // along bearing_deg +- each deviation, as far as the drone can have flown since that fix.
+  std::optional<geo::LatLon> last_fix;
+  double max_travel_m = 0;
+  double bearing_deg = 0;  // bearing to the target
+  std::vector<double> deviations_deg = {20, 40};
+  std::optional<double> heading_deg;  // frame up, clockwise from north
+  double heading_sigma_deg = 10;
+  std::optional<double> altitude_m;  // above ground
+
+  // "" when valid, else a message naming the flag at fault.
+  std::string Check() const;
+};
+
+// One locate run: the map loaded once, the prior from the options checked against its extent.
+class MapLocateRun {
+ public:
+  // Throws Error on invalid options, an unreadable map, or a prior centre far outside the map
+  // (field "--prior" or "--last-fix").
+  explicit MapLocateRun(const MapLocateOptions& options);
+  ~MapLocateRun();
+
+  // Localizes the frame in `image_path` (any format OpenCV reads; read as grey) with the prior of
+  // the options. Throws Error when the image cannot be read; an unlocalized frame is a result.
+  maploc::LocateResult LocateImage(const std::string& image_path);
+
+  // Localizes each frame listed in the csv `list_path` (header
+  // image,prior_lat,prior_lon,radius_m,heading_deg,heading_sigma_deg; empty fields keep the
+  // options' values) and hands `emit` one JSON object per frame, in order: the
+  // LocateResultJson plus "image", or {localized: false, reason: "error: ..."} when that row or
+  // its frame is bad. Throws Error (file, line) only for an unreadable list or a bad header.
+  void LocateList(const std::string& list_path,
+                  const std::function<void(const nlohmann::json&)>& emit);
+
+ private:
+  maploc::LocateResult LocateFrame(const std::string& image_path, const maploc::Prior& prior);
+  void CheckInsideMap(const geo::LatLon& centre, double radius_m, const std::string& field) const;
+
+  MapLocateOptions options_;
+  std::unique_ptr<maploc::MapDatabase> db_;
+  std::unique_ptr<maploc::Locator> locator_;
+  maploc::Prior prior_;
+};
+
+// The result as JSON: localized, reason, method, lat/lon/x/y (null unless localized), map_px,
+// heading_deg, scale, altitude_m, inliers, inlier_ratio, confidence, candidate_tiles, time_ms,
+// times_ms {extraction, matching, estimation}.
+nlohmann::json LocateResultJson(const maploc::LocateResult& r);
+
+// The result as a few human-readable lines.
+std::string LocateResultText(const maploc::LocateResult& r);
+
+}  // namespace optinav::app

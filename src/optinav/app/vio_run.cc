@@ -1,0 +1,260 @@
+#include "optinav/app/vio_run.h"
+
+#include <fmt/format.h>
+
+#include "optinav/geo/geo.h"
+#include "optinav/io/text_parse.h"
+#include "optinav/io/trajectory_io.h"
+#include "optinav/report/geo_export.h"
+#include "optinav/util/error.h"
+#include "optinav/util/logging.h"
+
+namespace optinav::app {
+namespace {
+
+std::string StemOf(const std::string& path) {
+  const size_t dot = path.find_last_of('.');
+  const size_t slash = path.find_last_of('/');
+  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return path;
+  return path.substr(0, dot);
+}
+
+// The rejected samples with their reason.
+std::string RejectedCsv(const std::vector<vio::RejectedGnss>& rejected) {
+  std::string s = "#timestamp [ns], x [m], y [m], z [m], innovation [m], reason\n";
+  for (const vio::RejectedGnss& r : rejected)
+    s += fmt::format("{},{:.4f},{:.4f},{:.4f},{:.3f},\"{}\"\n", r.t_ns, r.position_enu_m.x(),
+                     r.position_enu_m.y(), r.position_enu_m.z(), r.innovation_m, r.reason);
+  return s;
+}
+
+// WGS84 csv and GeoJSON LineString of an ENU trajectory.
+void WriteWgs84(const Trajectory& enu, const Eigen::Vector3d& origin, const std::string& csv_path,
+                const std::string& geojson_path) {
+  const geo::LocalEnu frame(geo::LatLon{origin[0], origin[1]}, origin[2]);
+  std::string csv = "#timestamp [ns], latitude [deg], longitude [deg], height [m]\n";
+  report::GeoLine line;
+  line.name = "optinav vio (GNSS fused)";
+  line.properties["origin"] = fmt::format("{:.9f},{:.9f},{:.3f}", origin[0], origin[1], origin[2]);
+  for (size_t i = 0; i < enu.size(); ++i) {
+    double h = 0;
+    const geo::LatLon ll = frame.FromEnu(enu.pose(i).translation, &h);
+    csv += fmt::format("{},{:.10f},{:.10f},{:.4f}\n", enu.t_ns[i], ll.lat_deg, ll.lon_deg, h);
+    line.points.push_back(ll);
+  }
+  io::WriteFileAtomically(csv_path, csv);
+  io::WriteFileAtomically(geojson_path, report::ToGeoJson({line}, {}));
+}
+
+// The pipeline's options from the settings (config file, mode, loop closure, GNSS input).
+vio::VioRunOptions MakeRunOptions(const VioRunSettings& st,
+                                  std::optional<vio::GnssInput>* gnss_input) {
+  vio::VioRunOptions options;
+  if (!st.config_path.empty()) options.vio = vio::LoadVioOptions(st.config_path);
+  if (st.mode) options.vio.mode = *st.mode;
+  // AirSim recordings have no IMU.
+  if (st.format == VioDatasetFormat::kAirsim && !st.mode) options.vio.mode = vio::VioMode::kStereo;
+  if (st.loop_closure) {
+    (options.vio.mode == vio::VioMode::kStereo ? options.vio.loop_closure.stereo_only
+                                               : options.vio.loop_closure.stereo_imu) =
+        *st.loop_closure;
+  }
+  options.threaded = !st.sequential;
+  options.max_frames = st.max_frames;
+  options.injected_backend_delay_ms = st.injected_backend_delay_ms;
+  if (!st.gnss) return options;
+  if (options.vio.mode != vio::VioMode::kStereoImu || st.format != VioDatasetFormat::kEuroc)
+    throw Error("GNSS fusion needs a EuRoC dataset in stereo-imu mode", {.field = "--gnss"});
+  *gnss_input = vio::LoadGnssInput(st.dataset, st.gnss_input);
+  vio::GnssFusionOptions g = st.gnss_fusion;
+  g.lever_arm_in_body = (*gnss_input)->lever_arm_in_body;
+  options.gnss = g;
+  options.gnss_samples = (*gnss_input)->samples;
+  spdlog::info("gnss: {} samples from {} (sigma {:.2f} m, norm {}, time {})",
+               (*gnss_input)->samples.size(), (*gnss_input)->file, (*gnss_input)->default_sigma_m,
+               vio::GnssNormName(g.norm), vio::GnssTimeModeName(g.time_mode));
+  return options;
+}
+
+// The output trajectory: the body in the VIO world frame, or in ENU once GNSS aligned it.
+Trajectory OutputTrajectory(const VioRunSettings& st, VioRunReport* report) {
+  const vio::VioRunResult& r = report->run;
+  if (!st.gnss) return vio::EstimatesToTrajectory(r.estimates);
+  Trajectory enu = vio::EstimatesToEnuTrajectory(r.estimates, r.gnss_smoothing.enu_from_world);
+  if (enu.empty()) {
+    spdlog::warn(
+        "gnss: the ENU alignment was never initialised (too little horizontal motion or no "
+        "usable GNSS): {} is in the VIO world frame",
+        st.out);
+    return vio::EstimatesToTrajectory(r.estimates);
+  }
+  report->frame = "enu";
+  return enu;
+}
+
+void WriteTrajectories(const VioRunSettings& st, const VioRunReport& report,
+                       const Trajectory& body) {
+  const vio::VioRunResult& r = report.run;
+  io::WriteTrajectory(st.out, body, io::TrajectoryFormat::kTum);
+  if (!st.odometry_out.empty()) {
+    io::WriteTrajectory(st.odometry_out,
+                        vio::EstimatesToTrajectory(r.odometry.empty() ? r.estimates : r.odometry),
+                        io::TrajectoryFormat::kTum);
+  }
+  if (!st.camera_out.empty()) {
+    const Trajectory c = report.frame == "enu"
+                             ? vio::EstimatesToEnuTrajectory(
+                                   r.estimates, r.gnss_smoothing.enu_from_world, r.body_from_cam0)
+                             : vio::EstimatesToTrajectory(r.estimates, r.body_from_cam0);
+    io::WriteTrajectory(st.camera_out, c, io::TrajectoryFormat::kTum);
+  }
+}
+
+// Rejected samples, the live estimate beside the smoothed one, WGS84 csv and GeoJSON.
+void WriteGnssOutputs(const VioRunSettings& st, const vio::GnssInput& input, const Trajectory& body,
+                      VioRunReport* report) {
+  const vio::VioRunResult& r = report->run;
+  const bool enu = report->frame == "enu";
+  const std::string stem = StemOf(st.out);
+  report->gnss_rejected_out =
+      st.gnss_rejected_out.empty() ? stem + ".gnss_rejected.csv" : st.gnss_rejected_out;
+  io::WriteFileAtomically(report->gnss_rejected_out, RejectedCsv(r.gnss_rejected));
+  // By default the live estimate is written only when it differs (smoothed output).
+  report->gnss_live_out = st.gnss_live_out;
+  if (enu && report->gnss_live_out.empty() && r.gnss_smoothing.tracks_smoothed)
+    report->gnss_live_out = stem + ".live.tum";
+  if (!enu && !report->gnss_live_out.empty()) {
+    spdlog::warn("gnss: no ENU alignment: {} not written", report->gnss_live_out);
+  } else if (!report->gnss_live_out.empty()) {
+    io::WriteTrajectory(report->gnss_live_out, vio::EstimatesToEnuTrajectory(r.estimates),
+                        io::TrajectoryFormat::kTum);
+  }
+  report->wgs84_out = st.wgs84_out;
+  if (enu && input.origin_lat_lon_height) {
+    if (report->wgs84_out.empty()) report->wgs84_out = stem + ".wgs84.csv";
+    const std::string geojson = st.geojson_out.empty() ? stem + ".geojson" : st.geojson_out;
+    WriteWgs84(body, *input.origin_lat_lon_height, report->wgs84_out, geojson);
+  } else if (enu) {
+    spdlog::warn("gnss: no ENU origin known (give --gnss-origin): no WGS84 output");
+  }
+}
+
+}  // namespace
+
+std::string VioRunSettings::Check() const {
+  if (dataset.empty()) return "--dataset must be given";
+  if (out.empty()) return "--out must be given";
+  if (!(injected_backend_delay_ms >= 0 && injected_backend_delay_ms <= 10000))
+    return fmt::format("--inject-backend-delay-ms must be in [0, 10000], got {}",
+                       injected_backend_delay_ms);
+  if (gnss && loop_closure.value_or(false)) return "--loop-closure cannot be on with GNSS fusion";
+  // (A config file's stereo mode is found when the run loads it.)
+  if (gnss && (format == VioDatasetFormat::kAirsim || mode == vio::VioMode::kStereo))
+    return "--gnss fusion needs a EuRoC dataset in stereo-imu mode";
+  if (gnss_input.sigma_m && !(*gnss_input.sigma_m > 0))
+    return fmt::format("--gnss-sigma must be > 0, got {}", *gnss_input.sigma_m);
+  if (const std::string m = gnss_fusion.Check(); gnss && !m.empty())
+    return "--gnss fusion options: " + m;
+  return "";
+}
+
+VioRunReport RunVioDataset(const VioRunSettings& st) {
+  if (const std::string m = st.Check(); !m.empty()) throw Error(m);
+  std::optional<vio::GnssInput> gnss_input;
+  const vio::VioRunOptions options = MakeRunOptions(st, &gnss_input);
+  VioRunReport report;
+  report.mode = vio::VioModeName(options.vio.mode);
+  report.run = st.format == VioDatasetFormat::kAirsim ? vio::RunVioOnAirsim(st.dataset, options)
+                                                      : vio::RunVioOnEuroc(st.dataset, options);
+  if (report.run.estimates.empty())
+    throw Error("no pose estimated (never initialised: no stereo features or no IMU window)",
+                {.file = st.dataset});
+  const Trajectory body = OutputTrajectory(st, &report);
+  WriteTrajectories(st, report, body);
+  if (st.gnss) WriteGnssOutputs(st, *gnss_input, body, &report);
+  if (!st.stats_path.empty())
+    io::WriteFileAtomically(st.stats_path, VioStatsJson(report).dump(2) + "\n");
+  for (const vio::LostInterval& l : report.run.lost)
+    spdlog::warn("lost {:.3f} s .. {:.3f} s: {}", l.start_ns * 1e-9, l.end_ns * 1e-9, l.reason);
+  return report;
+}
+
+nlohmann::json VioStatsJson(const VioRunReport& report) {
+  const vio::VioRunResult& r = report.run;
+  nlohmann::json j;
+  j["mode"] = report.mode;
+  j["frame"] = report.frame;
+  j["frames"] = r.frames_total;
+  j["frames_processed"] = r.frames_processed;
+  j["frames_unpaired"] = r.frames_unpaired;
+  j["poses"] = r.estimates.size();
+  j["initializations"] = r.initializations;
+  j["first_initialization"] = r.first_init_kind;
+  nlohmann::json timing = nlohmann::json::object();
+  for (const auto& [stage, s] : r.timing)
+    timing[stage] = {{"count", s.count},
+                     {"median_ms", s.median_s * 1e3},
+                     {"p95_ms", s.p95_s * 1e3},
+                     {"mean_ms", s.mean_s * 1e3},
+                     {"max_ms", s.max_s * 1e3}};
+  j["timing_per_frame"] = timing;
+  nlohmann::json lost = nlohmann::json::array();
+  for (const vio::LostInterval& l : r.lost)
+    lost.push_back({{"start_s", l.start_ns * 1e-9},
+                    {"end_s", l.end_ns * 1e-9},
+                    {"duration_s", (l.end_ns - l.start_ns) * 1e-9},
+                    {"reason", l.reason}});
+  j["lost_intervals"] = lost;
+  j["loop_closure"] = r.loop_closure_ran;
+  nlohmann::json loops = nlohmann::json::array();
+  for (const vio::LoopEdge& l : r.loops)
+    loops.push_back({{"old_keyframe_s", l.t_old_ns * 1e-9},
+                     {"new_keyframe_s", l.t_new_ns * 1e-9},
+                     {"inliers", l.inliers},
+                     {"relative_translation_m", l.old_body_from_new_body.translation.norm()},
+                     {"correction_m", l.correction_m}});
+  j["loops"] = loops;
+  if (!r.gnss_stats.received) return j;
+  const vio::GnssFusionStats& g = r.gnss_stats;
+  j["gnss"] = {{"received", g.received},
+               {"factors", g.factors},
+               {"rejected", g.rejected},
+               {"alignments", g.alignments},
+               {"drift_inflations", g.drift_inflations},
+               {"smoothed_tracks", r.gnss_smoothing.tracks_smoothed},
+               {"smoothed_samples", r.gnss_smoothing.samples},
+               {"smoother_solve_s", r.gnss_smoothing.solve_s},
+               {"aligned_at_s", g.aligned_at_ns ? nlohmann::json(*g.aligned_at_ns * 1e-9)
+                                                : nlohmann::json(nullptr)}};
+  return j;
+}
+
+std::string FormatVioSummary(const VioRunSettings& st, const VioRunReport& report) {
+  const vio::VioRunResult& r = report.run;
+  std::string s;
+  if (!r.loops.empty()) {
+    s += fmt::format("loop closure: {} loop(s) closed, the output is corrected{}\n", r.loops.size(),
+                     st.odometry_out.empty() ? " (--odometry-out writes it before)" : "");
+  }
+  if (st.gnss) {
+    std::string where = "trajectory in the VIO world frame (no alignment)";
+    if (report.frame == "enu") {
+      where = "trajectory in ENU";
+      if (r.gnss_smoothing.tracks_smoothed)
+        where += " (smoothed over the run; live estimate -> " + report.gnss_live_out + ")";
+      if (!report.wgs84_out.empty()) where += ", WGS84 -> " + report.wgs84_out;
+    }
+    const vio::GnssFusionStats& g = r.gnss_stats;
+    s += fmt::format("gnss: {} samples, {} factors, {} rejected (-> {}), {}\n", g.received,
+                     g.factors, g.rejected, report.gnss_rejected_out, where);
+  }
+  const TimingSummary total = r.timing.count("total") ? r.timing.at("total") : TimingSummary{};
+  s += fmt::format(
+      "vio {}: {} poses from {} stereo frames, {} lost interval(s), {} initialisation; per frame "
+      "median {:.1f} ms, p95 {:.1f} ms -> {}\n",
+      report.mode, r.estimates.size(), r.frames_total, r.lost.size(), r.first_init_kind,
+      total.median_s * 1e3, total.p95_s * 1e3, st.out);
+  return s;
+}
+
+}  // namespace optinav::app

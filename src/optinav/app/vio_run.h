@@ -1,0 +1,63 @@
+// The VIO run behind `optinav vio`: loads the options, runs vio::RunVioOnEuroc / RunVioOnAirsim
+// (optionally fusing GNSS) and writes the trajectory, the camera and pre-loop-closure
+// trajectories, the statistics JSON and, with GNSS, the side outputs (rejected samples, the live
+// estimate, WGS84 csv, GeoJSON). Every file is written atomically.
+#pragma once
+
+#include <optional>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "optinav/vio/gnss_input.h"
+#include "optinav/vio/pipeline.h"
+
+namespace optinav::app {
+
+enum class VioDatasetFormat { kEuroc, kAirsim };
+
+struct VioRunSettings {
+  std::string dataset;  // sequence folder (holding mav0/, or an AirSim recording)
+  VioDatasetFormat format = VioDatasetFormat::kEuroc;
+  std::string config_path;               // YAML vio::VioOptions; empty: the built-in defaults
+  std::optional<vio::VioMode> mode;      // nullopt: the config's (AirSim: stereo, it has no IMU)
+  std::optional<bool> loop_closure;      // nullopt: the config's for the mode
+  bool sequential = false;               // one thread, deterministic
+  size_t max_frames = 0;                 // 0: all
+  double injected_backend_delay_ms = 0;  // testing: vio::VioRunOptions::injected_backend_delay_ms
+
+  // Outputs: the body (IMU) trajectory, TUM (required); the others are optional (empty: none).
+  std::string out, camera_out, odometry_out, stats_path;
+
+  // GNSS fusion (EuRoC, stereo-imu). The fusion's lever arm comes from the input.
+  bool gnss = false;
+  vio::GnssInputOptions gnss_input;
+  vio::GnssFusionOptions gnss_fusion;
+  // GNSS side outputs; empty: beside `out` (TRAJ.gnss_rejected.csv; TRAJ.live.tum when the output
+  // is smoothed; TRAJ.wgs84.csv and TRAJ.geojson when the ENU origin is known).
+  std::string gnss_live_out, wgs84_out, geojson_out, gnss_rejected_out;
+
+  // Empty when valid, else a message that starts with the flag at fault ("--gnss-sigma ...").
+  std::string Check() const;
+};
+
+struct VioRunReport {
+  vio::VioRunResult run;
+  std::string mode;             // the mode that ran: "stereo-imu" | "stereo"
+  std::string frame = "world";  // of `out`: "world", or "enu" once GNSS aligned it
+  // The GNSS side outputs as resolved (defaults beside `out`); live: empty when not written.
+  std::string gnss_live_out, wgs84_out, gnss_rejected_out;
+};
+
+// Throws Error on invalid settings (Check()), bad input (naming file/line/field), a GNSS request
+// the dataset or mode cannot serve, and when no pose was estimated.
+VioRunReport RunVioDataset(const VioRunSettings& settings);
+
+// What `optinav vio` prints on stdout: the loop-closure line, the GNSS line, the summary line.
+std::string FormatVioSummary(const VioRunSettings& settings, const VioRunReport& report);
+
+// The statistics JSON (--stats): frames, poses, initialisation, timing per stage, lost
+// intervals, loops, GNSS counts.
+nlohmann::json VioStatsJson(const VioRunReport& report);
+
+}  // namespace optinav::app

@@ -1,0 +1,193 @@
+// The VIO run driver on a short simulated drone flight (optinav sim: urban world, small images,
+// fixed seed), sequential and therefore deterministic: pose counts, accuracy against the
+// simulator's ground truth, the files written and the statistics JSON, with and without GNSS.
+#include "optinav/app/vio_run.h"
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+
+#include "optinav/eval/metrics.h"
+#include "optinav/io/trajectory_io.h"
+#include "optinav/sim/simulation.h"
+#include "optinav/util/error.h"
+#include "optinav/util/testing.h"
+
+namespace optinav::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+// One simulated sequence for the whole suite (rendering is the slow part).
+class VioRunTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    root_ = new fs::path(testing::MakeTempDir("app_vio_run"));
+    sim::SimulationOptions o;
+    o.route = "drone";
+    o.duration_s = kDurationS;
+    o.speed_m_s = 4.0;
+    o.altitude_m = 6.0;
+    o.scale = kScale;
+    o.seed = 5;
+    o.gnss.sigma_m = kGnssSigmaM;  // precise enough to align ENU within the flight
+    o.out_dir = (*root_ / "seq").string();
+    sim::RunSimulation(o);
+  }
+  static void TearDownTestSuite() {
+    fs::remove_all(*root_);
+    delete root_;
+  }
+  static std::string Dataset() { return (*root_ / "seq").string(); }
+  static std::string Out(const std::string& name) { return (*root_ / name).string(); }
+
+  // APE RMSE (SE(3) alignment) of a TUM trajectory against the simulator's ground truth.
+  static double ApeRmse(const std::string& tum) {
+    const Trajectory gt =
+        io::ReadTrajectory(Dataset() + "/mav0/state_groundtruth_estimate0/data.csv");
+    eval::SyncedPair p = eval::Synchronize(gt, io::ReadTrajectory(tum));
+    eval::AlignTrajectory(p.ref, &p.est, {.mode = eval::AlignMode::kSe3});
+    return eval::ComputeApe(p.ref, p.est, eval::PoseRelation::kTranslation).stats.rmse;
+  }
+
+  static constexpr double kDurationS = 10.0;
+  static constexpr double kGnssSigmaM = 0.3;
+  static constexpr double kScale = 0.3;  // image size factor: small images, a short test
+  // About 40 m flown; the run gives 0.144 m (VIO alone) and 0.158 m (fused, ENU).
+  static constexpr double kApeBoundM = 0.2;
+  static fs::path* root_;
+};
+fs::path* VioRunTest::root_ = nullptr;
+
+size_t PoseLines(const std::string& path) {
+  const std::string text = testing::ReadFile(path);
+  size_t n = 0;
+  for (size_t i = 0; i < text.size(); i = text.find('\n', i) + 1) {
+    if (text[i] != '#') ++n;
+    if (text.find('\n', i) == std::string::npos) break;
+  }
+  return n;
+}
+
+TEST_F(VioRunTest, StereoInertialWritesTrajectoriesAndStats) {
+  VioRunSettings st;
+  st.dataset = Dataset();
+  st.sequential = true;
+  st.out = Out("vio.tum");
+  st.camera_out = Out("vio_cam.tum");
+  st.stats_path = Out("vio.json");
+  const VioRunReport r = RunVioDataset(st);
+  EXPECT_EQ(r.mode, "stereo-imu");
+  EXPECT_EQ(r.frame, "world");
+  EXPECT_EQ(r.run.frames_total, 201u);
+  EXPECT_EQ(r.run.estimates.size(), 163u);
+  EXPECT_TRUE(r.run.lost.empty());
+  EXPECT_EQ(PoseLines(st.out), r.run.estimates.size());
+  EXPECT_EQ(PoseLines(st.camera_out), r.run.estimates.size());
+  EXPECT_LT(ApeRmse(st.out), kApeBoundM);
+
+  const nlohmann::json j = nlohmann::json::parse(testing::ReadFile(st.stats_path));
+  for (const char* key : {"mode", "frame", "frames", "frames_processed", "frames_unpaired", "poses",
+                          "initializations", "first_initialization", "timing_per_frame",
+                          "lost_intervals", "loop_closure", "loops"})
+    EXPECT_TRUE(j.contains(key)) << key;
+  EXPECT_FALSE(j.contains("gnss"));
+  EXPECT_EQ(j["poses"], r.run.estimates.size());
+  EXPECT_EQ(j["frame"], "world");
+  EXPECT_TRUE(j["timing_per_frame"].contains("total"));
+  const std::string summary = FormatVioSummary(st, r);
+  EXPECT_EQ(summary.rfind(fmt::format("vio stereo-imu: {} poses from {} stereo frames, 0 lost",
+                                      r.run.estimates.size(), r.run.frames_total),
+                          0),
+            0u)
+      << summary;
+}
+
+TEST_F(VioRunTest, GnssFusionWritesEnuAndSideOutputs) {
+  VioRunSettings st;
+  st.dataset = Dataset();
+  st.sequential = true;
+  st.out = Out("fused.tum");
+  st.stats_path = Out("fused.json");
+  st.gnss = true;
+  // --gnss-init-yaw-sigma 2: the short flight aligns ENU within its first metres.
+  st.gnss_fusion.init_max_yaw_sigma_rad = 2 * M_PI / 180;
+  const VioRunReport r = RunVioDataset(st);
+  std::printf("%s", FormatVioSummary(st, r).c_str());
+  EXPECT_EQ(r.frame, "enu");
+  EXPECT_EQ(r.gnss_rejected_out, Out("fused.gnss_rejected.csv"));
+  EXPECT_EQ(r.wgs84_out, Out("fused.wgs84.csv"));
+  EXPECT_EQ(r.gnss_live_out, Out("fused.live.tum"));  // smoothed output: the live one beside it
+  for (const std::string& f :
+       {r.gnss_rejected_out, r.wgs84_out, r.gnss_live_out, Out("fused.geojson")})
+    EXPECT_TRUE(fs::exists(f)) << f;
+  EXPECT_EQ(PoseLines(st.out), r.run.estimates.size());
+  EXPECT_EQ(PoseLines(r.wgs84_out), r.run.estimates.size());
+  EXPECT_EQ(r.run.gnss_stats.received, 51u);
+  EXPECT_LT(ApeRmse(st.out), kApeBoundM);
+  const nlohmann::json j = nlohmann::json::parse(testing::ReadFile(st.stats_path));
+  EXPECT_EQ(j["frame"], "enu");
+  for (const char* key :
+       {"received", "factors", "rejected", "alignments", "smoothed_tracks", "aligned_at_s"})
+    EXPECT_TRUE(j["gnss"].contains(key)) << key;
+  EXPECT_NE(FormatVioSummary(st, r).find("trajectory in ENU (smoothed over the run"),
+            std::string::npos);
+}
+
+TEST(VioRunSettings, CheckNamesTheFlag) {
+  VioRunSettings st;
+  EXPECT_EQ(st.Check(), "--dataset must be given");
+  st.dataset = "d";
+  EXPECT_EQ(st.Check(), "--out must be given");
+  st.out = "t.tum";
+  EXPECT_EQ(st.Check(), "");
+  st.gnss = true;
+  st.loop_closure = true;
+  EXPECT_EQ(st.Check(), "--loop-closure cannot be on with GNSS fusion");
+  st.loop_closure.reset();
+  st.mode = vio::VioMode::kStereo;
+  EXPECT_EQ(st.Check(), "--gnss fusion needs a EuRoC dataset in stereo-imu mode");
+  st.mode.reset();
+  st.loop_closure = false;
+  st.gnss_input.sigma_m = 0;
+  EXPECT_EQ(st.Check(), "--gnss-sigma must be > 0, got 0");
+  st.gnss_input.sigma_m.reset();
+  st.gnss_fusion.factor_sigma_scale = 0;
+  EXPECT_EQ(st.Check().rfind("--gnss fusion options: ", 0), 0u) << st.Check();
+  try {
+    RunVioDataset(st);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.message().rfind("--gnss fusion options: ", 0), 0u) << e.what();
+  }
+}
+
+TEST_F(VioRunTest, ErrorsNameTheFieldOrFile) {
+  VioRunSettings st;
+  st.dataset = Dataset();
+  st.out = Out("x.tum");
+  st.gnss = true;
+  // Stereo mode from a config file: found when the run loads it.
+  st.config_path = testing::WriteFile(*root_ / "stereo.yaml", "mode: stereo\n");
+  try {
+    RunVioDataset(st);
+    FAIL() << "GNSS in stereo mode ran";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.context().field, "--gnss");
+  }
+  st.config_path.clear();
+  st.gnss_input.file = Out("missing_gnss.csv");
+  try {
+    RunVioDataset(st);
+    FAIL() << "a missing GNSS file was accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.context().file, st.gnss_input.file) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(st.out));  // nothing written by a refused run
+}
+
+}  // namespace
+}  // namespace optinav::app
