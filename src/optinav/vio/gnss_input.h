@@ -16,11 +16,11 @@
 namespace optinav::vio {
 
 struct GnssInputOptions {
-  std::string file;         // empty: <dataset>/mav0/gnss0/data.csv
-  std::string sensor_yaml;  // empty: sensor.yaml next to the file, when present
-  std::optional<io::GnssFileKind> kind;                // nullopt: from the header
+  std::string file;                      // empty: <dataset>/mav0/gnss0/data.csv
+  std::string sensor_yaml;               // empty: sensor.yaml next to the file, when present
+  std::optional<io::GnssFileKind> kind;  // nullopt: from the header
   std::optional<Eigen::Vector3d> origin_lat_lon_height;  // overrides the yaml's
-  std::optional<double> sigma_m;                        // overrides the yaml's (default 1 m)
+  std::optional<double> sigma_m;                         // overrides the yaml's (default 1 m)
   std::optional<Eigen::Vector3d> lever_arm_in_body;      // overrides the yaml's (default 0)
 };
 
