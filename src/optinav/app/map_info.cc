@@ -75,4 +75,20 @@ std::string MapInfoText(const std::string& path, const maploc::MapDatabase& db) 
       db.FeatureCount(), s.min_features, s.max_features, db.feature_gsd_m);
 }
 
+std::string MapCheckText(const maploc::MapCheckReport& r) {
+  return fmt::sprintf(
+      "  check      : ok, SQLite integrity check passed; CRC-32 of the metadata and of all %zu "
+      "tiles (%zu features, %zu blob bytes) match\n",
+      r.tiles, r.features, r.checked_bytes);
+}
+
+nlohmann::json MapCheckJson(const maploc::MapCheckReport& r) {
+  return {{"ok", true},
+          {"sqlite_integrity", "ok"},
+          {"checksum", "crc32"},
+          {"tiles_verified", r.tiles},
+          {"features", r.features},
+          {"blob_bytes", r.checked_bytes}};
+}
+
 }  // namespace optinav::app

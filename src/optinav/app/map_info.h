@@ -17,4 +17,8 @@ nlohmann::json MapInfoJson(const maploc::MapDatabase& db);
 // The same as a few aligned lines, headed by the database's `path`.
 std::string MapInfoText(const std::string& path, const maploc::MapDatabase& db);
 
+// `map info --check`: what was verified, one line ("check: ok, ...").
+std::string MapCheckText(const maploc::MapCheckReport& report);
+nlohmann::json MapCheckJson(const maploc::MapCheckReport& report);
+
 }  // namespace optinav::app

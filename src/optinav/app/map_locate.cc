@@ -126,6 +126,8 @@ void MapLocateRun::LocateList(const std::string& list_path,
       j = LocateResultJson(LocateFrame(std::string(f[0]), p));
     } catch (const Error& e) {
       j = {{"localized", false}, {"reason", std::string("error: ") + e.what()}};
+    } catch (const std::exception& e) {  // OpenCV or the library: this frame fails, not the run
+      j = {{"localized", false}, {"reason", std::string("internal error: ") + e.what()}};
     }
     j["image"] = f.empty() ? "" : std::string(f[0]);
     emit(j);

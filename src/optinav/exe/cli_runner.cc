@@ -63,6 +63,10 @@ int RunCli(CLI::App& app, int argc, char** argv, const std::function<int()>& run
     const bool usage = e.context().field == "--log-level";
     PrintError(app, e.what(), usage);
     return usage ? 2 : 1;
+  } catch (const std::exception& e) {
+    // Anything else (OpenCV, the standard library) is still an error, never std::terminate.
+    PrintError(app, std::string("internal error: ") + e.what(), false);
+    return 1;
   }
 }
 

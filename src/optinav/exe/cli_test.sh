@@ -406,5 +406,24 @@ grep -q '"reached": 0' "$WORK/m3/summary.json" || fail "missed mission summary.j
 expect_exit 2 "demo bad duration" "optinav demo: error: field '--duration'" "$BIN" demo \
   --duration 1 --out "$WORK/demo2"
 
+# map info --check: verifies the whole file; a changed descriptor byte is named by tile, exit 1.
+expect_ok "map info --check" "$BIN" map info "$WORK/naip.db" --check
+grep -q "check      : ok" "$WORK/out.txt" || fail "map info --check lacks its summary"
+expect_ok "map info --check --json" "$BIN" map info "$WORK/naip.db" --check --json
+grep -q '"tiles_verified"' "$WORK/out.txt" || fail "map info --check --json lacks the check"
+cp "$WORK/naip.db" "$WORK/damaged.db"
+python3 - "$WORK/damaged.db" <<'PY' || fail "could not damage the map database"
+import sqlite3, sys
+db = sqlite3.connect(sys.argv[1])
+(d,) = db.execute("SELECT descriptors FROM tiles WHERE id=2").fetchone()
+d = bytearray(d); d[5] ^= 0x40
+db.execute("UPDATE tiles SET descriptors=? WHERE id=2", (bytes(d),)); db.commit()
+PY
+expect_exit 1 "map info --check on a damaged map" \
+  "tile 2 is damaged (descriptors checksum mismatch)" "$BIN" map info "$WORK/damaged.db" --check
+expect_exit 1 "map info on a damaged map" "tile 2 is damaged" "$BIN" map info "$WORK/damaged.db"
+expect_exit 1 "map locate on a damaged map" "tile 2 is damaged" "$BIN" map locate \
+  --map "$WORK/damaged.db" --image "$WORK/f2017.png"
+
 if [[ $failures -gt 0 ]]; then echo "$failures failure(s)"; exit 1; fi
 echo "all CLI checks passed"

@@ -110,9 +110,10 @@ int RunGnssBench(int argc, char** argv) {
 
 int RunBench(int argc, char** argv) {
   if (argc >= 2 && std::string(argv[1]) == "gnss") return RunGnssBench(argc - 1, argv + 1);
-  std::fprintf(stderr,
+  const bool help = argc >= 2 && (std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h");
+  std::fprintf(help ? stdout : stderr,
                "usage: optinav bench gnss --out DIR [options]   (optinav bench gnss --help)\n");
-  return 2;
+  return help ? 0 : 2;
 }
 
 }  // namespace optinav

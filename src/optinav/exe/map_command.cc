@@ -1,6 +1,7 @@
 // optinav map build | info | locate | render: orthophoto feature databases, frame-to-map fixes
 // and synthetic frames to try them on.
 #include <cstdio>
+#include <optional>
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -52,12 +53,18 @@ int RunBuild(BuildFlags f) {
   return 0;
 }
 
-int RunInfo(const std::string& path, bool json) {
-  const maploc::MapDatabase db = maploc::LoadMapDatabase(path);
+int RunInfo(const std::string& path, bool json, bool check) {
+  // --check: the whole file (SQLite's page structure too); a damaged file throws, exit 1.
+  std::optional<maploc::MapCheckReport> report;
+  if (check) report = maploc::CheckMapDatabase(path);
+  const maploc::MapDatabase db = report ? std::move(report->db) : maploc::LoadMapDatabase(path);
   if (json) {
-    std::printf("%s\n", app::MapInfoJson(db).dump(2).c_str());
+    nlohmann::json j = app::MapInfoJson(db);
+    if (report) j["check"] = app::MapCheckJson(*report);
+    std::printf("%s\n", j.dump(2).c_str());
   } else {
     std::fputs(app::MapInfoText(path, db).c_str(), stdout);
+    if (report) std::fputs(app::MapCheckText(*report).c_str(), stdout);
   }
   return 0;
 }
@@ -155,10 +162,12 @@ int RunMap(int argc, char** argv) {
   CLI::App* build = app.add_subcommand("build", "build a tile/feature database from a GeoTIFF");
   AddBuild(*build, build_flags);
   std::string info_path;
-  bool info_json = false;
+  bool info_json = false, info_check = false;
   CLI::App* info = app.add_subcommand("info", "print a database's extent, CRS, tiles, features");
   info->add_option("map", info_path, "map database")->required();
   info->add_flag("--json", info_json, "machine-readable output");
+  info->add_flag("--check", info_check,
+                 "verify the whole file (SQLite structure, every checksum); exit 1 if damaged");
   LocateFlags locate_flags;
   CLI::App* locate = app.add_subcommand("locate", "localize camera frames on the map");
   AddLocate(*locate, locate_flags);
@@ -167,7 +176,7 @@ int RunMap(int argc, char** argv) {
   AddRender(*render, render_flags);
   return cli::RunCli(app, argc, argv, [&] {
     if (build->parsed()) return RunBuild(build_flags);
-    if (info->parsed()) return RunInfo(info_path, info_json);
+    if (info->parsed()) return RunInfo(info_path, info_json, info_check);
     if (locate->parsed()) return RunLocate(locate_flags);
     return RunRender(render_flags);
   });

@@ -2,7 +2,9 @@
 
 #include <atomic>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
+#include <map>
 #include <mutex>
 #include <thread>
 
@@ -62,6 +64,38 @@ struct Stmt {
   ~Stmt() { sqlite3_finalize(st); }
 };
 
+// A tile's non-blob columns as the bytes its geometry checksum covers: id, row, col, padded and
+// n_features as int64, the 16 REAL columns as float64, in column order, little-endian (the
+// host's order on every platform optinav builds on). NaN is counted as 0: SQLite stores it as
+// NULL, which reads back as 0.
+class GeometryBytes {
+ public:
+  void Int(int64_t v) { Append(&v, sizeof v); }
+  void Real(double v) {
+    if (std::isnan(v)) v = 0;
+    Append(&v, sizeof v);
+  }
+  uint32_t Crc() const { return Crc32(bytes_.data(), bytes_.size()); }
+
+ private:
+  void Append(const void* p, size_t n) { bytes_.append(static_cast<const char*>(p), n); }
+  std::string bytes_;
+};
+
+// Metadata checksum: every row but `checksum` itself, in key order, as key NUL value NUL.
+uint32_t MetaCrc(const std::map<std::string, std::string>& meta) {
+  uint32_t crc = 0;
+  for (const auto& [k, v] : meta) {
+    if (k == "checksum") continue;
+    crc = Crc32(k.c_str(), k.size() + 1, crc);
+    crc = Crc32(v.c_str(), v.size() + 1, crc);
+  }
+  return crc;
+}
+
+// The database's stored integer for a CRC-32.
+int64_t CrcValue(uint32_t crc) { return static_cast<int64_t>(crc); }
+
 nlohmann::json OptionsToJson(const MapBuildOptions& o) {
   return {{"altitude_m", o.altitude_m},
           {"hfov_deg", o.hfov_deg},
@@ -81,7 +115,9 @@ MapBuildOptions OptionsFromJson(const nlohmann::json& j) {
   o.frame_height = j.at("frame_height");
   o.scale_factor = j.at("scale_factor");
   o.overlap = j.at("overlap");
-  o.feature_type = *features::ParseFeatureType(j.at("features").get<std::string>());
+  const auto type = features::ParseFeatureType(j.at("features").get<std::string>());
+  if (!type) throw std::invalid_argument("unknown feature type");
+  o.feature_type = *type;
   o.max_features = j.at("max_features");
   return o;
 }
@@ -98,12 +134,13 @@ void WriteDatabase(const MapDatabase& m, const std::string& out_path) {
         " px0 REAL, py0 REAL, px1 REAL, py1 REAL, crs_cx REAL, crs_cy REAL,"
         " lat_ul REAL, lon_ul REAL, lat_ur REAL, lon_ur REAL, lat_lr REAL, lon_lr REAL,"
         " lat_ll REAL, lon_ll REAL, lat_c REAL, lon_c REAL, padded INTEGER,"
-        " n_features INTEGER, keypoints BLOB, descriptors BLOB);");
+        " n_features INTEGER, keypoints BLOB, descriptors BLOB,"
+        " geometry_crc INTEGER, keypoints_crc INTEGER, descriptors_crc INTEGER);");
     db.Exec("BEGIN");
     {
       Stmt ins{db.Prepare("INSERT INTO meta VALUES(?, ?)")};
       nlohmann::json gt = m.transform.c;
-      const std::vector<std::pair<std::string, std::string>> meta = {
+      std::map<std::string, std::string> meta = {
           {"format_version", std::to_string(kMapFormatVersion)},
           {"ortho_path", m.ortho_path},
           {"crs_wkt", m.crs_wkt},
@@ -118,7 +155,11 @@ void WriteDatabase(const MapDatabase& m, const std::string& out_path) {
           {"rows", std::to_string(m.rows)},
           {"cols", std::to_string(m.cols)},
           {"build_options", OptionsToJson(m.options).dump()},
+          {"complete", "1"},
       };
+      meta["checksum"] = std::to_string(MetaCrc(meta));
+      // `complete` is written last, after every tile: a database without it is incomplete.
+      meta.erase("complete");
       for (const auto& [k, v] : meta) {
         sqlite3_bind_text(ins.st, 1, k.c_str(), -1, SQLITE_TRANSIENT);
         sqlite3_bind_text(ins.st, 2, v.c_str(), -1, SQLITE_TRANSIENT);
@@ -127,38 +168,50 @@ void WriteDatabase(const MapDatabase& m, const std::string& out_path) {
       }
     }
     {
-      Stmt ins{
-          db.Prepare("INSERT INTO tiles VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)")};
+      Stmt ins{db.Prepare(
+          "INSERT INTO tiles VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)")};
       std::vector<float> kp;
       for (const MapTile& t : m.tiles) {
         int k = 1;
-        sqlite3_bind_int(ins.st, k++, t.index);
-        sqlite3_bind_int(ins.st, k++, t.row);
-        sqlite3_bind_int(ins.st, k++, t.col);
-        sqlite3_bind_double(ins.st, k++, t.px.x);
-        sqlite3_bind_double(ins.st, k++, t.px.y);
-        sqlite3_bind_double(ins.st, k++, t.px.x + t.px.width);
-        sqlite3_bind_double(ins.st, k++, t.px.y + t.px.height);
-        sqlite3_bind_double(ins.st, k++, t.centre_crs.x());
-        sqlite3_bind_double(ins.st, k++, t.centre_crs.y());
+        GeometryBytes geometry;
+        auto bind_int = [&](int64_t v) {
+          sqlite3_bind_int64(ins.st, k++, v);
+          geometry.Int(v);
+        };
+        auto bind_real = [&](double v) {
+          sqlite3_bind_double(ins.st, k++, v);
+          geometry.Real(v);
+        };
+        bind_int(t.index);
+        bind_int(t.row);
+        bind_int(t.col);
+        bind_real(t.px.x);
+        bind_real(t.px.y);
+        bind_real(t.px.x + t.px.width);
+        bind_real(t.px.y + t.px.height);
+        bind_real(t.centre_crs.x());
+        bind_real(t.centre_crs.y());
         for (const geo::LatLon& c : t.corners) {
-          sqlite3_bind_double(ins.st, k++, c.lat_deg);
-          sqlite3_bind_double(ins.st, k++, c.lon_deg);
+          bind_real(c.lat_deg);
+          bind_real(c.lon_deg);
         }
-        sqlite3_bind_double(ins.st, k++, t.centre.lat_deg);
-        sqlite3_bind_double(ins.st, k++, t.centre.lon_deg);
-        sqlite3_bind_int(ins.st, k++, t.padded);
-        sqlite3_bind_int(ins.st, k++, static_cast<int>(t.keypoints.size()));
+        bind_real(t.centre.lat_deg);
+        bind_real(t.centre.lon_deg);
+        bind_int(t.padded);
+        bind_int(static_cast<int64_t>(t.keypoints.size()));
         kp.clear();
         for (size_t i = 0; i < t.keypoints.size(); ++i) {
           kp.insert(kp.end(),
                     {t.keypoints[i].x, t.keypoints[i].y, t.keypoint_size[i], t.keypoint_angle[i]});
         }
-        sqlite3_bind_blob(ins.st, k++, kp.data(), static_cast<int>(kp.size() * sizeof(float)),
-                          SQLITE_TRANSIENT);
+        const size_t kp_bytes = kp.size() * sizeof(float);
+        sqlite3_bind_blob(ins.st, k++, kp.data(), static_cast<int>(kp_bytes), SQLITE_TRANSIENT);
         const cv::Mat d = t.descriptors.isContinuous() ? t.descriptors : t.descriptors.clone();
-        sqlite3_bind_blob(ins.st, k++, d.data, static_cast<int>(d.total() * d.elemSize()),
-                          SQLITE_TRANSIENT);
+        const size_t d_bytes = d.total() * d.elemSize();
+        sqlite3_bind_blob(ins.st, k++, d.data, static_cast<int>(d_bytes), SQLITE_TRANSIENT);
+        sqlite3_bind_int64(ins.st, k++, CrcValue(geometry.Crc()));
+        sqlite3_bind_int64(ins.st, k++, CrcValue(Crc32(kp.data(), kp_bytes)));
+        sqlite3_bind_int64(ins.st, k++, CrcValue(Crc32(d.data, d_bytes)));
         db.Check(sqlite3_step(ins.st), "insert tile");
         sqlite3_reset(ins.st);
       }
@@ -176,6 +229,22 @@ void WriteDatabase(const MapDatabase& m, const std::string& out_path) {
 }
 
 }  // namespace
+
+uint32_t Crc32(const void* data, size_t size, uint32_t crc) {
+  static const std::array<uint32_t, 256> table = [] {
+    std::array<uint32_t, 256> t{};
+    for (uint32_t i = 0; i < 256; ++i) {
+      uint32_t c = i;
+      for (int k = 0; k < 8; ++k) c = (c & 1) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
+      t[i] = c;
+    }
+    return t;
+  }();
+  const auto* p = static_cast<const unsigned char*>(data);
+  crc = ~crc;
+  for (size_t i = 0; i < size; ++i) crc = table[(crc ^ p[i]) & 0xFFu] ^ (crc >> 8);
+  return ~crc;
+}
 
 std::string MapBuildOptions::Check() const {
   if (!(altitude_m > 0 && altitude_m < 100000))
@@ -318,8 +387,15 @@ MapDatabase LoadMapDatabase(const std::string& path) {
     Stmt q{db.Prepare("SELECT key, value FROM meta")};
     int rc;
     while ((rc = sqlite3_step(q.st)) == SQLITE_ROW) {
-      meta[reinterpret_cast<const char*>(sqlite3_column_text(q.st, 0))] =
-          reinterpret_cast<const char*>(sqlite3_column_text(q.st, 1));
+      const auto* key = reinterpret_cast<const char*>(sqlite3_column_text(q.st, 0));
+      const auto* value = reinterpret_cast<const char*>(sqlite3_column_text(q.st, 1));
+      if (key == nullptr || value == nullptr) {
+        throw Error(
+            "map database metadata is damaged (a NULL key or value); rebuild it with "
+            "`optinav map build`",
+            {.file = path, .field = "meta"});
+      }
+      meta[key] = value;
     }
     if (rc != SQLITE_DONE) throw Error("not a valid optinav map database", {.file = path});
   }
@@ -328,8 +404,8 @@ MapDatabase LoadMapDatabase(const std::string& path) {
     if (it == meta.end()) throw Error("map database lacks metadata", {.file = path, .field = key});
     return it->second;
   };
-  const int version = std::stoi(get("format_version"));
-  if (version != kMapFormatVersion) {
+  const std::string& version = get("format_version");
+  if (version != std::to_string(kMapFormatVersion)) {
     throw Error(fmt::format("map database format version {} is not supported (this optinav "
                             "reads version {}); rebuild it with `optinav map build`",
                             version, kMapFormatVersion),
@@ -337,6 +413,12 @@ MapDatabase LoadMapDatabase(const std::string& path) {
   }
   if (meta.count("complete") == 0) {
     throw Error("map database is incomplete (interrupted build?)", {.file = path});
+  }
+  if (get("checksum") != std::to_string(MetaCrc(meta))) {
+    throw Error(
+        "map database metadata is damaged (checksum mismatch); rebuild it with "
+        "`optinav map build`",
+        {.file = path, .field = "meta"});
   }
   try {
     m.ortho_path = get("ortho_path");
@@ -354,6 +436,8 @@ MapDatabase LoadMapDatabase(const std::string& path) {
     m.cols = std::stoi(get("cols"));
     m.options = OptionsFromJson(nlohmann::json::parse(get("build_options")));
     m.feature_type = m.options.feature_type;
+    if (m.rows <= 0 || m.cols <= 0 || int64_t{m.rows} * m.cols > 10'000'000)
+      throw std::invalid_argument(fmt::format("bad tile grid {} x {}", m.cols, m.rows));
   } catch (const Error&) {
     throw;
   } catch (const std::exception& e) {
@@ -365,43 +449,87 @@ MapDatabase LoadMapDatabase(const std::string& path) {
   const size_t desc_bytes = desc_cols * (desc_type == CV_8U ? 1 : 4);
   Stmt q{db.Prepare(
       "SELECT id, row, col, px0, py0, px1, py1, crs_cx, crs_cy, lat_ul, lon_ul, lat_ur, lon_ur,"
-      " lat_lr, lon_lr, lat_ll, lon_ll, lat_c, lon_c, padded, n_features, keypoints, descriptors"
-      " FROM tiles ORDER BY id")};
+      " lat_lr, lon_lr, lat_ll, lon_ll, lat_c, lon_c, padded, n_features, keypoints, descriptors,"
+      " geometry_crc, keypoints_crc, descriptors_crc FROM tiles ORDER BY id")};
   int rc;
   while ((rc = sqlite3_step(q.st)) == SQLITE_ROW) {
+    const int position = static_cast<int>(m.tiles.size());
     MapTile t;
     int k = 0;
-    t.index = sqlite3_column_int(q.st, k++);
-    t.row = sqlite3_column_int(q.st, k++);
-    t.col = sqlite3_column_int(q.st, k++);
-    const double px0 = sqlite3_column_double(q.st, k++), py0 = sqlite3_column_double(q.st, k++);
-    const double px1 = sqlite3_column_double(q.st, k++), py1 = sqlite3_column_double(q.st, k++);
+    GeometryBytes geometry;
+    auto get_int = [&] {
+      const int64_t v = sqlite3_column_int64(q.st, k++);
+      geometry.Int(v);
+      return v;
+    };
+    auto get_real = [&] {
+      const double v = sqlite3_column_double(q.st, k++);
+      geometry.Real(v);
+      return v;
+    };
+    const int64_t id = get_int(), row = get_int(), col = get_int();
+    const double px0 = get_real(), py0 = get_real();
+    const double px1 = get_real(), py1 = get_real();
     t.px = cv::Rect2d(px0, py0, px1 - px0, py1 - py0);
-    t.centre_crs.x() = sqlite3_column_double(q.st, k++);
-    t.centre_crs.y() = sqlite3_column_double(q.st, k++);
+    t.centre_crs.x() = get_real();
+    t.centre_crs.y() = get_real();
     for (auto& c : t.corners) {
-      c.lat_deg = sqlite3_column_double(q.st, k++);
-      c.lon_deg = sqlite3_column_double(q.st, k++);
+      c.lat_deg = get_real();
+      c.lon_deg = get_real();
     }
-    t.centre.lat_deg = sqlite3_column_double(q.st, k++);
-    t.centre.lon_deg = sqlite3_column_double(q.st, k++);
-    t.padded = sqlite3_column_int(q.st, k++) != 0;
-    const int n = sqlite3_column_int(q.st, k++);
+    t.centre.lat_deg = get_real();
+    t.centre.lon_deg = get_real();
+    t.padded = get_int() != 0;
+    const int64_t n = get_int();
     const void* kp = sqlite3_column_blob(q.st, k);
     const size_t kp_bytes = static_cast<size_t>(sqlite3_column_bytes(q.st, k++));
     const void* desc = sqlite3_column_blob(q.st, k);
     const size_t d_bytes = static_cast<size_t>(sqlite3_column_bytes(q.st, k++));
-    if (n < 0 || kp_bytes != n * 4 * sizeof(float) || d_bytes != n * desc_bytes) {
-      throw Error(fmt::format("tile {} has inconsistent feature data", t.index), {.file = path});
+    // Name the tile by its place in the file when its own id may be what is damaged.
+    const std::string name = id == position ? fmt::format("tile {}", position)
+                                            : fmt::format("tile {} (stored id {})", position, id);
+    auto damaged = [&](const std::string& what, const char* field) {
+      return Error(
+          fmt::format("{} is damaged ({}); rebuild the map with `optinav map build`", name, what),
+          {.file = path, .field = field});
+    };
+    const struct {
+      uint32_t actual;
+      const char* field;
+    } sums[3] = {{geometry.Crc(), "geometry"},
+                 {Crc32(kp, kp_bytes), "keypoints"},
+                 {Crc32(desc, d_bytes), "descriptors"}};
+    for (const auto& sum : sums) {
+      if (sqlite3_column_type(q.st, k) != SQLITE_INTEGER ||
+          sqlite3_column_int64(q.st, k) != CrcValue(sum.actual)) {
+        throw damaged(std::string(sum.field) + " checksum mismatch", sum.field);
+      }
+      ++k;
     }
-    const float* f = static_cast<const float*>(kp);
-    for (int i = 0; i < n; ++i) {
+    if (id != position || row != position / m.cols || col != position % m.cols) {
+      throw damaged(fmt::format("row {}, col {} out of place", row, col), "geometry");
+    }
+    if (n < 0 || kp_bytes != static_cast<size_t>(n) * 4 * sizeof(float) ||
+        d_bytes != static_cast<size_t>(n) * desc_bytes) {
+      throw Error(fmt::format("tile {} has inconsistent feature data", position),
+                  {.file = path, .field = "n_features"});
+    }
+    t.index = position;
+    t.row = static_cast<int>(row);
+    t.col = static_cast<int>(col);
+    std::vector<float> f(static_cast<size_t>(n) * 4);
+    if (kp_bytes > 0) std::memcpy(f.data(), kp, kp_bytes);  // blobs need not be float-aligned
+    for (int64_t i = 0; i < n; ++i) {
       t.keypoints.emplace_back(f[4 * i], f[4 * i + 1]);
       t.keypoint_size.push_back(f[4 * i + 2]);
       t.keypoint_angle.push_back(f[4 * i + 3]);
     }
-    if (n > 0) t.descriptors = cv::Mat(n, desc_cols, desc_type, const_cast<void*>(desc)).clone();
+    if (n > 0) {
+      t.descriptors.create(static_cast<int>(n), desc_cols, desc_type);
+      std::memcpy(t.descriptors.data, desc, d_bytes);
+    }
     m.tiles.push_back(std::move(t));
+    if (static_cast<int64_t>(m.tiles.size()) > int64_t{m.rows} * m.cols) break;
   }
   db.Check(rc, "read tiles");
   if (static_cast<int>(m.tiles.size()) != m.rows * m.cols) {
@@ -410,6 +538,39 @@ MapDatabase LoadMapDatabase(const std::string& path) {
         {.file = path});
   }
   return m;
+}
+
+MapCheckReport CheckMapDatabase(const std::string& path) {
+  if (!std::filesystem::is_regular_file(path))
+    throw Error("map database not found", {.file = path});
+  {
+    Db db(path, SQLITE_OPEN_READONLY);
+    Stmt q{db.Prepare("PRAGMA integrity_check")};
+    std::string problems;
+    int rc, n_problems = 0;
+    while ((rc = sqlite3_step(q.st)) == SQLITE_ROW) {
+      const auto* line = reinterpret_cast<const char*>(sqlite3_column_text(q.st, 0));
+      const std::string s = line ? line : "?";
+      if (s == "ok") continue;
+      if (++n_problems <= 3) problems += (problems.empty() ? "" : "; ") + s;
+    }
+    if (n_problems > 3) problems += fmt::format("; {} more", n_problems - 3);
+    db.Check(rc, "integrity check");
+    if (!problems.empty()) {
+      throw Error("map database is damaged (SQLite integrity check: " + problems +
+                      "); rebuild it with `optinav map build`",
+                  {.file = path});
+    }
+  }
+  MapCheckReport r;
+  r.db = LoadMapDatabase(path);
+  r.tiles = r.db.tiles.size();
+  for (const MapTile& t : r.db.tiles) {
+    r.features += t.keypoints.size();
+    r.checked_bytes +=
+        t.keypoints.size() * 4 * sizeof(float) + t.descriptors.total() * t.descriptors.elemSize();
+  }
+  return r;
 }
 
 }  // namespace optinav::maploc

@@ -8,6 +8,7 @@
 #pragma once
 
 #include <array>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -18,7 +19,12 @@
 
 namespace optinav::maploc {
 
-constexpr int kMapFormatVersion = 1;
+// 2: CRC-32 checksums on the metadata and on every tile's geometry, keypoints and descriptors.
+constexpr int kMapFormatVersion = 2;
+
+// CRC-32 (IEEE 802.3 / zlib polynomial, reflected), continuing from `crc` (0 to start): the
+// checksum the database stores; Python's zlib.crc32 gives the same value.
+uint32_t Crc32(const void* data, size_t size, uint32_t crc = 0);
 
 struct MapBuildOptions {
   double altitude_m = 300.0;                  // flight altitude above ground
@@ -70,9 +76,22 @@ struct MapDatabase {
 MapDatabase BuildMapDatabase(const std::string& ortho_path, const MapBuildOptions& options,
                              const std::string& out_path);
 
-// Loads a database; throws Error naming the file if it is not one, is incomplete, or has another
-// format version.
+// Loads a database, verifying the metadata's and every tile's checksums; throws Error naming the
+// file if it is not one, is incomplete, has another format version, or is damaged (naming the
+// first damaged tile and field, or the metadata). A damaged map is never returned.
 MapDatabase LoadMapDatabase(const std::string& path);
+
+// What CheckMapDatabase verified.
+struct MapCheckReport {
+  MapDatabase db;
+  size_t tiles = 0, features = 0;
+  size_t checked_bytes = 0;  // keypoint and descriptor blob bytes whose checksums matched
+};
+
+// Verifies the whole file: SQLite's own structure check (PRAGMA integrity_check, every page)
+// and then LoadMapDatabase's checksums of the metadata and every tile. Throws Error as
+// LoadMapDatabase does, naming the first damaged tile.
+MapCheckReport CheckMapDatabase(const std::string& path);
 
 // The tile grid BuildMapDatabase would use (no features): for tests and `map info`.
 MapDatabase PlanMapDatabase(const std::string& ortho_path, const MapBuildOptions& options);

@@ -207,7 +207,9 @@ void DrawParticles(cv::Mat& bgr, const cv::Mat& depth, const camera::PinholeCame
           const double radius = m.radius_min + (m.radius_max - m.radius_min) * rng.Uniform();
           const cv::Vec3f colour = m.colours[static_cast<int>(rng.Uniform() * 4) & 3];
           const double tumble_rate = 0.5 + 1.5 * rng.Uniform();
-          auto position = [&](double t) {
+          // An explicit return type: `auto` would return an Eigen expression that refers to the
+          // temporary Vector3d below after it died (found by AddressSanitizer).
+          auto position = [&](double t) -> Eigen::Vector3d {
             const double a = 2 * M_PI * m.sway_hz * t + phase;
             return q + m.velocity * t +
                    m.sway_m * Eigen::Vector3d(std::sin(a), std::cos(1.3 * a), 0);
