@@ -1,17 +1,20 @@
 #!/usr/bin/env bash
 # Installs every Debian 12 package optinav needs (idempotent) and builds it with -j2.
-# Usage: scripts/setup.sh [--no-build] [--build-dir DIR] [--build-type TYPE]
+# Usage: scripts/setup.sh [--no-build] [--build-dir DIR] [--build-type TYPE] [-DNAME=VALUE ...]
+# (-D options go to cmake, e.g. -DOPTINAV_SANITIZE=ON as scripts/test.sh --sanitize uses.)
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 BUILD_DIR="${ROOT}/build"
 BUILD_TYPE="Release"
 DO_BUILD=1
+CMAKE_ARGS=()
 while [[ $# -gt 0 ]]; do
   case "$1" in
     --no-build) DO_BUILD=0 ;;
     --build-dir) BUILD_DIR="$2"; shift ;;
     --build-type) BUILD_TYPE="$2"; shift ;;
+    -D*) CMAKE_ARGS+=("$1") ;;
     *) echo "setup.sh: unknown option '$1'" >&2; exit 2 ;;
   esac
   shift
@@ -43,6 +46,6 @@ else
 fi
 
 if [[ ${DO_BUILD} -eq 1 ]]; then
-  cmake -S "${ROOT}" -B "${BUILD_DIR}" -DCMAKE_BUILD_TYPE="${BUILD_TYPE}"
+  cmake -S "${ROOT}" -B "${BUILD_DIR}" -DCMAKE_BUILD_TYPE="${BUILD_TYPE}" "${CMAKE_ARGS[@]}"
   cmake --build "${BUILD_DIR}" -j2
 fi
