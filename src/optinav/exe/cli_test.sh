@@ -202,7 +202,8 @@ expect_error "mission bad lat,lon" "--target" "$BIN" mission --map "$WORK/naip.d
 
 # A failed run never clobbers an existing output.
 echo "keep me" > "$WORK/keep.json"
-"$BIN" eval ape "$WORK/nan.txt" "$WORK/nan.txt" --json "$WORK/keep.json" >/dev/null 2>&1
+rc=0; "$BIN" eval ape "$WORK/nan.txt" "$WORK/nan.txt" --json "$WORK/keep.json" >/dev/null 2>&1 || rc=$?
+[[ $rc -eq 1 ]] || fail "eval on a NaN file: exit $rc, expected 1"
 grep -q "keep me" "$WORK/keep.json" || fail "existing --json output was overwritten by a failed run"
 
 # --- VIO on the real EuRoC clip (short runs: --max-frames) and its bad inputs.
