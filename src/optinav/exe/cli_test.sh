@@ -290,13 +290,13 @@ expect_error "vio gnss unsorted stamps" "g_bad.csv:4" "$BIN" vio --dataset "$MIC
   --gnss-file "$WORK/g_bad.csv" --out "$WORK/x.tum"
 expect_error "vio gnss bad walk" "--gnss-walk" "$BIN" vio --dataset "$MICRO" --gnss \
   --gnss-file "$WORK/gnss_llh.csv" --gnss-walk 0.1 --out "$WORK/x.tum"
-expect_error "vio gnss bad factor scale" "factor_sigma_scale must be > 0" "$BIN" vio \
+expect_error "vio gnss bad factor scale" "field '--gnss-factor-scale': must be > 0" "$BIN" vio \
   --dataset "$MICRO" --gnss --gnss-file "$WORK/gnss_llh.csv" --gnss-factor-scale 0 --out "$WORK/x.tum"
-expect_error "vio gnss bad smoother walk" "smooth_walk_scale must be > 0" "$BIN" vio \
+expect_error "vio gnss bad smoother walk" "field '--gnss-smooth-walk-scale': must be > 0" "$BIN" vio \
   --dataset "$MICRO" --gnss --gnss-file "$WORK/gnss_llh.csv" --gnss-smooth-walk-scale 0 --out "$WORK/x.tum"
 expect_error "bench gnss bad smoother walk" "--gnss-smooth-walk-scale" \
   "$BIN" bench gnss --out "$WORK/bg" --gnss-smooth-walk-scale 0
-expect_error "bench gnss bad factor scale" "factor_sigma_scale must be > 0" \
+expect_error "bench gnss bad factor scale" "field '--gnss-factor-scale': must be > 0" \
   "$BIN" bench gnss --out "$WORK/bg" --gnss-factor-scale -1
 printf '#timestamp [ns],x,y,z\n' > "$WORK/g_empty.csv"
 expect_error "vio gnss empty file" "no usable GNSS sample" "$BIN" vio --dataset "$MICRO" --gnss \

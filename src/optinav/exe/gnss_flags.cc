@@ -61,55 +61,45 @@ void GnssFusionFlags::ApplyTo(vio::GnssFusionOptions* g) const {
     if (!(*gate >= 0)) throw UsageError(fmt::format("must be >= 0, got {}", *gate), "--gnss-gate");
     g->gate_chi2 = *gate;
   }
-  if (init_distance) g->init_min_distance_m = *init_distance;
+  if (init_distance) {
+    if (!(*init_distance >= 0))
+      throw UsageError(fmt::format("must be >= 0, got {}", *init_distance), "--gnss-init-distance");
+    g->init_min_distance_m = *init_distance;
+  }
   if (init_yaw_sigma_deg) {
     if (!(*init_yaw_sigma_deg > 0))
       throw UsageError("must be > 0 (degrees)", "--gnss-init-yaw-sigma");
     g->init_max_yaw_sigma_rad = *init_yaw_sigma_deg * M_PI / 180;
   }
-  if (factor_scale) g->factor_sigma_scale = *factor_scale;
-  if (smooth_walk_scale) g->smooth_walk_scale = *smooth_walk_scale;
-  g->smooth = !no_smooth;
-  try {
-    if (!drift_test.empty()) {
-      const std::vector<double> v =
-          ParseNumbers(drift_test, 2, "SAMPLES,CHI2", "--gnss-drift-test");
-      if (v[0] != std::floor(v[0]) || !(v[0] >= 1))
-        throw UsageError(fmt::format("SAMPLES must be a whole number >= 1, got {}", v[0]),
-                         "--gnss-drift-test");
-      g->drift_window_samples = static_cast<int>(v[0]);
-      g->drift_test_chi2 = v[1];
-    }
-    if (!walk.empty()) {
-      const std::vector<double> v =
-          ParseNumbers(walk, 2, "M_PER_SQRT_M,RAD_PER_SQRT_M", "--gnss-walk");
-      if (v[0] < 0 || v[1] < 0) throw UsageError("must be >= 0", "--gnss-walk");
-      g->alignment_walk_m_per_sqrt_m = v[0];
-      g->alignment_walk_rad_per_sqrt_m = v[1];
-    }
-  } catch (const UsageError&) {
-    throw;
-  } catch (const Error& e) {
-    throw UsageError(e.message(), e.context().field);
+  if (factor_scale) {
+    if (!(*factor_scale > 0) || !std::isfinite(*factor_scale))
+      throw UsageError(fmt::format("must be > 0, got {}", *factor_scale), "--gnss-factor-scale");
+    g->factor_sigma_scale = *factor_scale;
   }
-  // Name the flag the failed check is about.
-  const std::string e = g->Check();
-  if (e.empty()) return;
-  std::string flag = "--gnss";
-  for (const auto& [key, name] :
-       {std::pair<const char*, const char*>{"smooth_walk_scale", "--gnss-smooth-walk-scale"},
-        {"factor_sigma_scale", "--gnss-factor-scale"},
-        {"alignment random walk", "--gnss-walk"},
-        {"gate_chi2", "--gnss-gate"},
-        {"init_min_distance", "--gnss-init-distance"},
-        {"drift_window_samples", "--gnss-drift-test"},
-        {"drift_test_chi2", "--gnss-drift-test"},
-        {"norm parameter", "--gnss-norm-param"}})
-    if (e.find(key) != std::string::npos) {
-      flag = name;
-      break;
-    }
-  throw UsageError(e, flag);
+  if (smooth_walk_scale) {
+    if (!(*smooth_walk_scale > 0) || !std::isfinite(*smooth_walk_scale))
+      throw UsageError(fmt::format("must be > 0, got {}", *smooth_walk_scale),
+                       "--gnss-smooth-walk-scale");
+    g->smooth_walk_scale = *smooth_walk_scale;
+  }
+  g->smooth = !no_smooth;
+  if (!drift_test.empty()) {  // ParseNumbers throws UsageError naming the flag
+    const std::vector<double> v = ParseNumbers(drift_test, 2, "SAMPLES,CHI2", "--gnss-drift-test");
+    if (v[0] != std::floor(v[0]) || !(v[0] >= 1))
+      throw UsageError(fmt::format("SAMPLES must be a whole number >= 1, got {}", v[0]),
+                       "--gnss-drift-test");
+    g->drift_window_samples = static_cast<int>(v[0]);
+    g->drift_test_chi2 = v[1];
+  }
+  if (!walk.empty()) {
+    const std::vector<double> v =
+        ParseNumbers(walk, 2, "M_PER_SQRT_M,RAD_PER_SQRT_M", "--gnss-walk");
+    if (v[0] < 0 || v[1] < 0) throw UsageError("must be >= 0", "--gnss-walk");
+    g->alignment_walk_m_per_sqrt_m = v[0];
+    g->alignment_walk_rad_per_sqrt_m = v[1];
+  }
+  // Every flag was checked above; what Check() still finds is in the options given by the code.
+  ThrowIfInvalid(g->Check(), "--gnss");
 }
 
 }  // namespace optinav::cli

@@ -587,17 +587,14 @@ std::optional<FramePacket> VioEstimator::RunFrontend(int64_t t_ns, const cv::Mat
 }
 
 void VioEstimator::PostFeedback(bool with_rejected_tracks) {
-  BackendFeedback feedback;
-  feedback.initialized = backend_.initialized();
-  if (feedback.initialized) feedback.bias = backend_.Newest().bias;
-  // The rejected set only grows between resets (Lose resets posted_rejected_).
-  const bool rejected_changed =
-      with_rejected_tracks && backend_.rejected_tracks().size() != posted_rejected_;
-  pending_feedback_.initialized = feedback.initialized;
-  pending_feedback_.bias = feedback.bias;
-  // Kept until sent: a later update of the same packet without a set does not erase it.
-  if (rejected_changed) pending_feedback_.rejected_tracks = backend_.rejected_tracks();
-  if (rejected_changed) posted_rejected_ = backend_.rejected_tracks().size();
+  pending_feedback_.initialized = backend_.initialized();
+  pending_feedback_.bias = pending_feedback_.initialized ? backend_.Newest().bias : ImuBias{};
+  // The rejected set only grows between resets (Lose resets posted_rejected_). Kept until sent:
+  // a later update of the same packet without a set does not erase it.
+  if (with_rejected_tracks && backend_.rejected_tracks().size() != posted_rejected_) {
+    pending_feedback_.rejected_tracks = backend_.rejected_tracks();
+    posted_rejected_ = backend_.rejected_tracks().size();
+  }
 }
 
 std::optional<FrameEstimate> VioEstimator::RunBackend(FramePacket packet) {
