@@ -3,6 +3,12 @@
 //    frames cut from the map's own image (the document's setting); target median < 10 ms.
 //  - BM_OrientationCorrelation: NAIP 2009 map, 256x256 frames from 2017 (appearance change),
 //    prior within 250 m, heading known within +-10 deg; target median < 20 ms.
+//  - BM_Perspective/*: issue 18's acceptance set: NAIP 2009 map (640 m, 90 deg, 256x256), true
+//    perspective frames from 2012 and 2017 (maploc::MakePerspectiveFrames: pitch +-15, roll +-10,
+//    altitude 0.8-1.25x, exposure, blur, noise, JPEG), given altitude +-10 %, attitude +-1 deg;
+//    with prior and heading / prior only / global, and today's call (no altitude or attitude) on
+//    the same frames. Targets: median <= 25 ms per 256x256 frame with a prior, <= 1 s global;
+//    vehicle position within 25 m for >= 95 / 90 / 80 %. Each prints a summary line with them.
 // Each benchmark iteration localizes a fixed, seeded set of frames and reports the median and
 // per-stage medians as counters (ms; util/statistics.h: an even count gives the mean of the two
 // middle values). Data: ../shared/data (or $OPTINAV_SHARED_DATA).
@@ -114,7 +120,8 @@ void BM_LocateWithPrior(benchmark::State& state) {
 }
 BENCHMARK(BM_LocateWithPrior)->Unit(benchmark::kMillisecond)->Iterations(2);
 
-void BM_OrientationCorrelation(benchmark::State& state) {
+// NAIP 2009 as the acceptance map: `map build --altitude 640 --hfov 90 --frame-size 256x256`.
+const maploc::MapDatabase& Naip2009Map() {
   static const maploc::MapDatabase db = [] {
     maploc::MapBuildOptions o;
     o.frame_width = o.frame_height = 256;
@@ -123,6 +130,11 @@ void BM_OrientationCorrelation(benchmark::State& state) {
     return maploc::BuildMapDatabase((SharedData() / "geo/naip/naip_20090818.tif").string(), o,
                                     (WorkDir() / "naip2009.db").string());
   }();
+  return db;
+}
+
+void BM_OrientationCorrelation(benchmark::State& state) {
+  const maploc::MapDatabase& db = Naip2009Map();
   const geo::GeoRaster flight =
       geo::GeoRaster::Open((SharedData() / "geo/naip/naip_20170827.tif").string());
   maploc::Locator locator(db);
@@ -212,6 +224,105 @@ void BM_GlobalSearch(benchmark::State& state) {
   state.counters["median_error_m"] = errors.empty() ? -1 : Median(errors);
 }
 BENCHMARK(BM_GlobalSearch)->Unit(benchmark::kMillisecond)->Iterations(1);
+
+// What locate is given in each acceptance mode.
+enum PerspectiveMode { kPriorHeading, kPriorOnly, kGlobal, kTodayPriorHeading };
+
+const char* ModeName(int mode) {
+  switch (mode) {
+    case kPriorHeading:
+      return "prior+heading";
+    case kPriorOnly:
+      return "prior only";
+    case kGlobal:
+      return "global (no prior, no heading)";
+    default:
+      return "today's call (prior+heading, no altitude/attitude)";
+  }
+}
+
+maploc::Prior GivenPrior(const maploc::PerspectiveFrame& f, int mode) {
+  maploc::Prior p;
+  if (mode != kGlobal) {
+    p.position = f.prior;
+    p.radius_m = f.prior_radius_m;
+  }
+  if (mode == kPriorHeading || mode == kTodayPriorHeading) {
+    p.heading_deg = f.given_heading_deg;
+    p.heading_sigma_deg = f.heading_sigma_deg;
+  }
+  if (mode != kTodayPriorHeading) {
+    p.altitude_m = f.given_altitude_m;
+    p.roll_deg = f.given_roll_deg;
+    p.pitch_deg = f.given_pitch_deg;
+  }
+  return p;
+}
+
+// Args: mode, frame width, frame height, frames per year (2012 and 2017).
+void BM_Perspective(benchmark::State& state) {
+  const int mode = static_cast<int>(state.range(0));
+  const maploc::MapDatabase& db = Naip2009Map();
+  maploc::PerspectiveFrameOptions fo;
+  fo.width = static_cast<int>(state.range(1));
+  fo.height = static_cast<int>(state.range(2));
+  const int per_year = static_cast<int>(state.range(3));
+  std::vector<maploc::PerspectiveFrame> frames;
+  for (const auto& [year, seed] : {std::pair{"20120731", 1812}, std::pair{"20170827", 1817}}) {
+    const geo::GeoRaster flight = geo::GeoRaster::Open(
+        (SharedData() / "geo/naip" / ("naip_" + std::string(year) + ".tif")).string());
+    for (maploc::PerspectiveFrame& f : maploc::MakePerspectiveFrames(flight, per_year, fo, seed)) {
+      frames.push_back(std::move(f));
+    }
+  }
+  maploc::Locator locator(db);
+  locator.Locate(frames[0].image, GivenPrior(frames[0], mode));  // warm caches and indexes
+  Medians m;
+  std::vector<double> errors, alt_errors;
+  int within = 0, within_2sigma = 0, with_sigma = 0;
+  for (auto _ : state) {
+    m = Medians();
+    errors.clear();
+    alt_errors.clear();
+    within = within_2sigma = with_sigma = 0;
+    for (const maploc::PerspectiveFrame& f : frames) {
+      const maploc::LocateResult r = locator.Locate(f.image, GivenPrior(f, mode));
+      m.Add(r);
+      if (!r.localized) continue;
+      const double e = geo::GeodesicInverse(r.latlon, f.latlon).distance_m;
+      errors.push_back(e);
+      within += e <= 25.0;
+      if (r.altitude_m > 0) alt_errors.push_back(std::abs(r.altitude_m / f.pose.altitude_m - 1));
+      if (r.position_sigma_m > 0) {
+        ++with_sigma;
+        within_2sigma += e <= 2 * r.position_sigma_m;
+      }
+    }
+  }
+  m.Report(state);
+  const double n = static_cast<double>(frames.size());
+  const bool prior = mode != kGlobal;
+  const double target_pct = mode == kPriorOnly ? 90 : mode == kGlobal ? 80 : 95;
+  state.counters["within_25m_pct"] = 100.0 * within / n;
+  state.counters["median_error_m"] = errors.empty() ? -1 : Median(errors);
+  state.counters["median_alt_err_pct"] = alt_errors.empty() ? -1 : 100 * Median(alt_errors);
+  std::printf(
+      "[perspective %dx%d, %s] %d frames (2012 + 2017): vehicle within 25 m %d (%.1f %%, target "
+      ">= %.0f %%%s), median error %.1f m, median altitude error %.1f %% (target <= 5 %%), "
+      "error <= 2 sigma %d/%d (target >= 90 %%), median %.1f ms per frame (target <= %s)\n",
+      fo.width, fo.height, ModeName(mode), static_cast<int>(n), within, 100.0 * within / n,
+      target_pct, mode == kTodayPriorHeading ? ", for the new call" : "",
+      errors.empty() ? -1.0 : Median(errors), alt_errors.empty() ? -1.0 : 100 * Median(alt_errors),
+      within_2sigma, with_sigma, Median(m.total), prior ? "25 ms" : "1000 ms");
+}
+BENCHMARK(BM_Perspective)
+    ->Args({kPriorHeading, 256, 256, 25})
+    ->Args({kTodayPriorHeading, 256, 256, 25})
+    ->Args({kPriorOnly, 256, 256, 25})
+    ->Args({kGlobal, 256, 256, 10})
+    ->Args({kPriorHeading, 640, 480, 10})
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1);
 
 }  // namespace
 

@@ -1,14 +1,78 @@
 #include "optinav/app/map_locate.h"
 
+#include <algorithm>
+#include <array>
+#include <cmath>
+
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <opencv2/imgcodecs.hpp>
 
+#include "optinav/io/euroc_dataset.h"
 #include "optinav/io/text_parse.h"
 
 namespace optinav::app {
 
 using maploc::LocateResult;
 using maploc::Prior;
+
+namespace {
+
+// The columns of an --images-from list, found by its header in any order.
+enum Column {
+  kImage,
+  kPriorLat,
+  kPriorLon,
+  kRadius,
+  kHeading,
+  kHeadingSigma,
+  kAltitude,
+  kRoll,
+  kPitch,
+  kColumnCount
+};
+constexpr std::array<const char*, kColumnCount> kColumnNames = {
+    "image",      "prior_lat", "prior_lon", "radius_m", "heading_deg", "heading_sigma_deg",
+    "altitude_m", "roll_deg",  "pitch_deg"};
+using ColumnIndex = std::array<int, kColumnCount>;  // field of each column, -1 when absent
+
+ColumnIndex ParseHeader(const std::vector<std::string_view>& f, const ErrorContext& ctx) {
+  ColumnIndex index;
+  index.fill(-1);
+  for (size_t k = 0; k < f.size(); ++k) {
+    ErrorContext c = ctx;
+    c.field = std::string(f[k]);
+    const auto it = std::find(kColumnNames.begin(), kColumnNames.end(), f[k]);
+    if (it == kColumnNames.end()) {
+      throw Error(fmt::format("unknown column '{}' in the header (known: {})", f[k],
+                              fmt::join(kColumnNames, ",")),
+                  c);
+    }
+    int& slot = index[it - kColumnNames.begin()];
+    if (slot >= 0) throw Error(fmt::format("column '{}' appears twice", f[k]), c);
+    slot = static_cast<int>(k);
+  }
+  if (index[kImage] < 0) {
+    ErrorContext c = ctx;
+    c.field = "image";
+    throw Error("the header has no 'image' column", c);
+  }
+  return index;
+}
+
+// The camera of a EuRoC sensor.yaml; every error names the file (and the field at fault).
+camera::PinholeCamera LoadCamera(const std::string& path) {
+  const io::CameraCalibration calibration = io::ReadCameraCalibration(path);
+  try {
+    return io::ToPinholeCamera(calibration);
+  } catch (const Error& e) {
+    ErrorContext c = e.context();
+    c.file = path;
+    throw Error(e.message(), c);
+  }
+}
+
+}  // namespace
 
 std::optional<LocateMethod> ParseLocateMethod(const std::string& name) {
   if (name == "auto") return LocateMethod::kAuto;
@@ -19,6 +83,14 @@ std::optional<LocateMethod> ParseLocateMethod(const std::string& name) {
 
 std::string MapLocateOptions::Check() const {
   if (last_fix && !(max_travel_m > 0)) return "--last-fix needs a positive --max-travel";
+  if (altitude_m && !(*altitude_m > 0)) return "--altitude must be positive";
+  for (const std::optional<double>& a : {roll_deg, pitch_deg}) {
+    if (a && !(std::abs(*a) < 80)) return "--attitude roll and pitch must be within +-80 deg";
+  }
+  if (!(attitude_sigma_deg > 0 && attitude_sigma_deg < 90))
+    return "--attitude-sigma must be in (0, 90) deg";
+  if (hfov_deg != 0 && !(hfov_deg > 0 && hfov_deg < 180)) return "--hfov must be in (0, 180) deg";
+  if (hfov_deg != 0 && !camera_path.empty()) return "--camera and --hfov exclude each other";
   return "";
 }
 
@@ -27,11 +99,16 @@ MapLocateRun::MapLocateRun(const MapLocateOptions& options) : options_(options) 
   db_ = std::make_unique<maploc::MapDatabase>(maploc::LoadMapDatabase(options.map_path));
   maploc::LocateOptions lo;
   lo.ortho_path = options.ortho_path;
+  lo.hfov_deg = options.hfov_deg;
+  if (!options.camera_path.empty()) lo.camera = LoadCamera(options.camera_path);
   locator_ = std::make_unique<maploc::Locator>(*db_, lo);
   prior_.radius_m = options.radius_m;
   prior_.heading_deg = options.heading_deg;
   prior_.heading_sigma_deg = options.heading_sigma_deg;
   prior_.altitude_m = options.altitude_m;
+  prior_.roll_deg = options.roll_deg;
+  prior_.pitch_deg = options.pitch_deg;
+  prior_.attitude_sigma_deg = options.attitude_sigma_deg;
   if (options.prior) {
     prior_.position = options.prior;
     CheckInsideMap(*prior_.position, options.radius_m, "--prior");
@@ -84,52 +161,88 @@ LocateResult MapLocateRun::LocateImage(const std::string& image_path) {
   return LocateFrame(image_path, prior_);
 }
 
+namespace {
+
+// Applies the row's fields (`f`, columns by `index`) to the options' prior `p`; throws Error
+// naming the row and the field at fault.
+void ApplyRow(const std::vector<std::string_view>& f, const ColumnIndex& index,
+              const ErrorContext& ctx, Prior* p) {
+  auto number = [&](Column col) -> std::optional<double> {
+    if (index[col] < 0 || f[index[col]].empty()) return std::nullopt;
+    ErrorContext c = ctx;
+    c.field = kColumnNames[col];
+    return io::ParseFiniteDouble(f[index[col]], c);
+  };
+  auto fail = [&](Column col, const std::string& message) {
+    ErrorContext c = ctx;
+    c.field = kColumnNames[col];
+    throw Error(message, c);
+  };
+  const auto lat = number(kPriorLat), lon = number(kPriorLon);
+  if (lat.has_value() != lon.has_value())
+    throw Error("give both prior_lat and prior_lon or neither", ctx);
+  if (lat) p->position = geo::LatLon{*lat, *lon};
+  if (auto r = number(kRadius)) {
+    if (!(*r > 0)) fail(kRadius, "must be positive");
+    p->radius_m = *r;
+  }
+  if (auto h = number(kHeading)) p->heading_deg = *h;
+  if (auto s = number(kHeadingSigma)) {
+    if (!(*s > 0)) fail(kHeadingSigma, "must be positive");
+    p->heading_sigma_deg = *s;
+  }
+  if (auto a = number(kAltitude)) {
+    if (!(*a > 0)) fail(kAltitude, "must be positive");
+    p->altitude_m = *a;
+  }
+  for (const Column col : {kRoll, kPitch}) {
+    if (auto a = number(col)) {
+      if (!(std::abs(*a) < 80)) fail(col, "must be within +-80 deg");
+      (col == kRoll ? p->roll_deg : p->pitch_deg) = *a;
+    }
+  }
+}
+
+}  // namespace
+
 void MapLocateRun::LocateList(const std::string& list_path,
                               const std::function<void(const nlohmann::json&)>& emit) {
-  const std::string text = io::ReadFileToString(list_path);
+  const std::string file = io::ReadFileToString(list_path);
+  std::string_view text = file;
+  if (text.starts_with("\xEF\xBB\xBF")) text.remove_prefix(3);  // UTF-8 BOM (spreadsheets)
   io::LineCursor cursor(text);
   std::string_view line;
   std::vector<std::string_view> f;
-  bool header = true;
+  std::optional<ColumnIndex> index;
+  size_t columns = 0;
   while (cursor.Next(&line)) {
     if (io::IsCommentOrBlank(line)) continue;
     io::SplitFields(line, ',', &f);
-    if (header) {
-      header = false;
-      if (f.empty() || f[0] != "image") {
-        throw Error(
-            "expected the header 'image,prior_lat,prior_lon,radius_m,heading_deg,"
-            "heading_sigma_deg'",
-            {.file = list_path, .line = cursor.line_number()});
-      }
+    const ErrorContext ctx{.file = list_path, .line = cursor.line_number()};
+    if (!index) {
+      index = ParseHeader(f, ctx);
+      columns = f.size();
       continue;
     }
+    const int image_field = (*index)[kImage];
+    const std::string image =
+        image_field < static_cast<int>(f.size()) ? std::string(f[image_field]) : "";
     nlohmann::json j;
-    const ErrorContext ctx{.file = list_path, .line = cursor.line_number()};
     try {
-      if (f.size() != 6) throw Error(fmt::format("expected 6 fields, found {}", f.size()), ctx);
+      if (f.size() != columns)
+        throw Error(fmt::format("expected {} fields, found {}", columns, f.size()), ctx);
+      if (image.empty())
+        throw Error("no image", {.file = ctx.file, .line = ctx.line, .field = "image"});
       Prior p = prior_;
-      auto number = [&](int k, const char* name) -> std::optional<double> {
-        if (f[k].empty()) return std::nullopt;
-        ErrorContext c = ctx;
-        c.field = name;
-        return io::ParseFiniteDouble(f[k], c);
-      };
-      const auto lat = number(1, "prior_lat"), lon = number(2, "prior_lon");
-      if (lat.has_value() != lon.has_value())
-        throw Error("give both prior_lat and prior_lon or neither", ctx);
-      if (lat) p.position = geo::LatLon{*lat, *lon};
-      if (auto r = number(3, "radius_m")) p.radius_m = *r;
-      if (auto h = number(4, "heading_deg")) p.heading_deg = *h;
-      if (auto s = number(5, "heading_sigma_deg")) p.heading_sigma_deg = *s;
+      ApplyRow(f, *index, ctx, &p);
       if (p.position) CheckInsideMap(*p.position, p.radius_m, "prior_lat,prior_lon");
-      j = LocateResultJson(LocateFrame(std::string(f[0]), p));
+      j = LocateResultJson(LocateFrame(image, p));
     } catch (const Error& e) {
       j = {{"localized", false}, {"reason", std::string("error: ") + e.what()}};
     } catch (const std::exception& e) {  // OpenCV or the library: this frame fails, not the run
       j = {{"localized", false}, {"reason", std::string("internal error: ") + e.what()}};
     }
-    j["image"] = f.empty() ? "" : std::string(f[0]);
+    j["image"] = image;
     emit(j);
   }
 }
@@ -146,10 +259,16 @@ nlohmann::json LocateResultJson(const LocateResult& r) {
   j["lon"] = if_localized(r.latlon.lon_deg);
   j["x"] = if_localized(r.crs_xy.x());
   j["y"] = if_localized(r.crs_xy.y());
+  j["center_lat"] = if_localized(r.centre_latlon.lat_deg);
+  j["center_lon"] = if_localized(r.centre_latlon.lon_deg);
+  j["position_sigma_m"] = if_localized(r.position_sigma_m);
   j["map_px"] = {r.map_px.x(), r.map_px.y()};
+  j["center_px"] = {r.centre_px.x(), r.centre_px.y()};
   j["heading_deg"] = r.heading_deg;
-  j["scale"] = r.scale;
+  j["roll_deg"] = r.roll_deg;
+  j["pitch_deg"] = r.pitch_deg;
   j["altitude_m"] = r.altitude_m;
+  j["scale"] = r.scale;
   j["inliers"] = r.inliers;
   j["inlier_ratio"] = r.inlier_ratio;
   j["confidence"] = r.confidence;
@@ -168,15 +287,17 @@ std::string LocateResultText(const LocateResult& r) {
   }
   return fmt::format(
       "localized by {} (confidence {:.2f})\n"
-      "  lat, lon   : {:.7f}, {:.7f}\n"
+      "  vehicle    : {:.7f}, {:.7f} (+-{:.1f} m, 1 sigma)\n"
       "  map CRS    : {:.2f}, {:.2f}\n"
       "  map pixel  : {:.1f}, {:.1f}\n"
-      "  heading    : {:.1f} deg\n"
-      "  scale      : {:.3f} map px per frame px (altitude ~{:.0f} m)\n"
+      "  centre     : {:.7f}, {:.7f} (image centre's ground point)\n"
+      "  attitude   : roll {:.1f}, pitch {:.1f}, heading {:.1f} deg\n"
+      "  altitude   : {:.0f} m (scale {:.3f} map px per frame px)\n"
       "  inliers    : {} ({:.0f} %)\n"
       "  time       : {:.1f} ms (extraction {:.1f}, matching {:.1f}, estimation {:.1f})\n",
-      r.method, r.confidence, r.latlon.lat_deg, r.latlon.lon_deg, r.crs_xy.x(), r.crs_xy.y(),
-      r.map_px.x(), r.map_px.y(), r.heading_deg, r.scale, r.altitude_m, r.inliers,
+      r.method, r.confidence, r.latlon.lat_deg, r.latlon.lon_deg, r.position_sigma_m, r.crs_xy.x(),
+      r.crs_xy.y(), r.map_px.x(), r.map_px.y(), r.centre_latlon.lat_deg, r.centre_latlon.lon_deg,
+      r.roll_deg, r.pitch_deg, r.heading_deg, r.altitude_m, r.scale, r.inliers,
       100 * r.inlier_ratio, r.times.total_ms, r.times.extraction_ms, r.times.matching_ms,
       r.times.estimation_ms);
 }

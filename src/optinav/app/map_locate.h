@@ -35,6 +35,14 @@ struct MapLocateOptions {
   std::optional<double> heading_deg;  // frame up, clockwise from north
   double heading_sigma_deg = 10;
   std::optional<double> altitude_m;  // above ground
+  // Camera attitude from the autopilot (--attitude ROLL,PITCH; convention in docs/MAPDB.md:
+  // roll right wing down, pitch nose up, degrees) and its 1-sigma error.
+  std::optional<double> roll_deg, pitch_deg;
+  double attitude_sigma_deg = 1.5;
+  // The camera: --hfov (0: the map's build value; principal point at the frame centre) or
+  // --camera, a EuRoC sensor.yaml (intrinsics and distortion). Not both.
+  double hfov_deg = 0;
+  std::string camera_path;
 
   // "" when valid, else a message naming the flag at fault.
   std::string Check() const;
@@ -43,8 +51,8 @@ struct MapLocateOptions {
 // One locate run: the map loaded once, the prior from the options checked against its extent.
 class MapLocateRun {
  public:
-  // Throws Error on invalid options, an unreadable map, or a prior centre far outside the map
-  // (field "--prior" or "--last-fix").
+  // Throws Error on invalid options, an unreadable map or camera file (naming the file and the
+  // field), or a prior centre far outside the map (field "--prior" or "--last-fix").
   explicit MapLocateRun(const MapLocateOptions& options);
   ~MapLocateRun();
 
@@ -52,11 +60,13 @@ class MapLocateRun {
   // the options. Throws Error when the image cannot be read; an unlocalized frame is a result.
   maploc::LocateResult LocateImage(const std::string& image_path);
 
-  // Localizes each frame listed in the csv `list_path` (header
-  // image,prior_lat,prior_lon,radius_m,heading_deg,heading_sigma_deg; empty fields keep the
-  // options' values) and hands `emit` one JSON object per frame, in order: the
-  // LocateResultJson plus "image", or {localized: false, reason: "error: ..."} when that row or
-  // its frame is bad. Throws Error (file, line) only for an unreadable list or a bad header.
+  // Localizes each frame listed in the csv `list_path` and hands `emit` one JSON object per frame,
+  // in order: the LocateResultJson plus "image", or {localized: false, reason: "error: ..."}
+  // when that row or its frame is bad. Columns are found by the header, in any order: `image`
+  // (required), prior_lat, prior_lon, radius_m, heading_deg, heading_sigma_deg, altitude_m,
+  // roll_deg, pitch_deg; an empty field (or a missing column) keeps the options' value. Throws
+  // Error (file, line, field) only for an unreadable list or a bad header (an unknown or
+  // repeated column is named in the field).
   void LocateList(const std::string& list_path,
                   const std::function<void(const nlohmann::json&)>& emit);
 
@@ -70,8 +80,10 @@ class MapLocateRun {
   maploc::Prior prior_;
 };
 
-// The result as JSON: localized, reason, method, lat/lon/x/y (null unless localized), map_px,
-// heading_deg, scale, altitude_m, inliers, inlier_ratio, confidence, candidate_tiles, time_ms,
+// The result as JSON: localized, reason, method, lat/lon/x/y (the vehicle's position: the
+// camera's nadir point), center_lat/center_lon (the image centre's ground point),
+// position_sigma_m (all null unless localized), map_px, center_px, heading_deg, roll_deg,
+// pitch_deg, altitude_m, scale, inliers, inlier_ratio, confidence, candidate_tiles, time_ms,
 // times_ms {extraction, matching, estimation}.
 nlohmann::json LocateResultJson(const maploc::LocateResult& r);
 

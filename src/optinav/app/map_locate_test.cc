@@ -10,6 +10,8 @@
 #include "optinav/app/map_info.h"
 #include "optinav/app/map_render.h"
 #include "optinav/geo/raster.h"
+#include "optinav/maploc/frame_synth.h"
+#include "optinav/maploc/test_maps.h"
 #include "optinav/util/testing.h"
 
 namespace optinav::app {
@@ -149,7 +151,9 @@ TEST_F(Aero1Locate, ListGivesOneObjectPerFrameAndBadRowsAReason) {
 
   const std::string bad = testing::WriteFile(*dir_ / "bad.csv", "frame,lat\nx,1\n");
   EXPECT_ERROR(run.LocateList(bad, [](const nlohmann::json&) {}),
-               {.file = "bad.csv", .line = 1, .field = ""}, "expected the header 'image,");
+               {.file = "bad.csv", .line = 1, .field = "frame"},
+               "unknown column 'frame' in the header (known: image,prior_lat,prior_lon,radius_m,"
+               "heading_deg,heading_sigma_deg,altitude_m,roll_deg,pitch_deg)");
 }
 
 TEST_F(Aero1Locate, MapInfoSummarizesTheDatabase) {
@@ -181,6 +185,212 @@ TEST_F(Aero1Locate, RenderOutsideTheOrthophotoNamesAt) {
   EXPECT_ERROR(RenderFrame(r), {.file = "", .field = "--at"},
                "position lies outside the orthophoto");
   EXPECT_FALSE(std::filesystem::exists(r.out_path));
+}
+
+// A perspective frame (issue 18) of the NAIP 2017 image, localized on a map of the 2009 image
+// (map build --altitude 640 --hfov 90 --frame-size 256x256): camera pitched 12 deg nose up and
+// rolled 6 deg right wing up, so the image centre lies ~150 m ahead of the vehicle.
+class NaipPerspective : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new std::filesystem::path(testing::MakeTempDir("map_locate_naip"));
+    maploc::MapBuildOptions o;
+    o.frame_width = o.frame_height = 256;
+    o.hfov_deg = 90;
+    o.altitude_m = 640;
+    maploc::BuildMapDatabase(maploc::testmaps::Naip("20090818"), o, Path("naip2009.db"));
+    const geo::GeoRaster flight = geo::GeoRaster::Open(maploc::testmaps::Naip("20170827"));
+    const maploc::AerialPose pose{.nadir_px = {450, 380},
+                                  .altitude_m = 700,
+                                  .attitude = {.roll_deg = -6, .pitch_deg = 12, .yaw_deg = 35}};
+    Eigen::Matrix3d map_from_image;
+    const cv::Mat frame = maploc::RenderAerialFrame(
+        flight, maploc::RasterGsdMetres(flight), pose,
+        camera::PinholeCamera::FromHorizontalFov(256, 256, M_PI / 2), &map_from_image);
+    cv::imwrite(Path("frame.png"), frame);
+    const geo::CrsTransform crs(flight.crs_wkt());
+    vehicle_ = new geo::LatLon(crs.ToLatLon(flight.transform().PixelToCrs(pose.nadir_px)));
+    const Eigen::Vector2d centre_px =
+        (map_from_image * Eigen::Vector3d(127.5, 127.5, 1)).hnormalized();
+    centre_ = new geo::LatLon(crs.ToLatLon(flight.transform().PixelToCrs(centre_px)));
+  }
+  static void TearDownTestSuite() {
+    std::filesystem::remove_all(*dir_);
+    delete dir_;
+    delete vehicle_;
+    delete centre_;
+  }
+  static std::string Path(const std::string& name) { return (*dir_ / name).string(); }
+
+  // A prior 150 m off, the heading 5 deg off; no attitude or altitude (the tests add them).
+  static MapLocateOptions Options() {
+    MapLocateOptions o;
+    o.map_path = Path("naip2009.db");
+    o.prior = geo::GeodesicDirect(*vehicle_, 200, 150);
+    o.radius_m = 300;
+    o.heading_deg = 40;
+    return o;
+  }
+  static MapLocateOptions WithAttitude(MapLocateOptions o) {
+    o.roll_deg = -6.5;  // the autopilot's attitude and altitude, with errors
+    o.pitch_deg = 12.8;
+    o.altitude_m = 660;
+    return o;
+  }
+  static double Distance(const geo::LatLon& a, const geo::LatLon& b) {
+    return geo::GeodesicInverse(a, b).distance_m;
+  }
+
+  static std::filesystem::path* dir_;
+  static geo::LatLon* vehicle_;
+  static geo::LatLon* centre_;
+};
+std::filesystem::path* NaipPerspective::dir_ = nullptr;
+geo::LatLon* NaipPerspective::vehicle_ = nullptr;
+geo::LatLon* NaipPerspective::centre_ = nullptr;
+
+TEST_F(NaipPerspective, AttitudeGivenGivesTheVehiclePositionAndTheCentre) {
+  ASSERT_GT(Distance(*vehicle_, *centre_), 140);  // what a nadir assumption would get wrong
+  MapLocateRun run(WithAttitude(Options()));
+  const maploc::LocateResult r = run.LocateImage(Path("frame.png"));
+  ASSERT_TRUE(r.localized) << r.reason;
+  std::printf(
+      "perspective frame: vehicle error %.2f m, centre error %.2f m, altitude %.1f m, "
+      "roll %.2f pitch %.2f heading %.2f, sigma %.1f m, %s\n",
+      Distance(r.latlon, *vehicle_), Distance(r.centre_latlon, *centre_), r.altitude_m, r.roll_deg,
+      r.pitch_deg, r.heading_deg, r.position_sigma_m, r.method.c_str());
+  EXPECT_LT(Distance(r.latlon, *vehicle_), 10.0);
+  EXPECT_LT(Distance(r.centre_latlon, *centre_), 10.0);
+  EXPECT_NEAR(r.altitude_m, 700, 35);  // 5 %
+  EXPECT_NEAR(r.heading_deg, 35, 2.0);
+  EXPECT_GT(r.position_sigma_m, 0);
+
+  const nlohmann::json j = LocateResultJson(r);
+  for (const char* key : {"lat", "lon", "x", "y", "center_lat", "center_lon", "altitude_m",
+                          "roll_deg", "pitch_deg", "heading_deg", "position_sigma_m"}) {
+    ASSERT_TRUE(j.contains(key) && j[key].is_number()) << key << ": " << j.dump();
+  }
+  EXPECT_DOUBLE_EQ(j["lat"].get<double>(), r.latlon.lat_deg);
+  EXPECT_DOUBLE_EQ(j["x"].get<double>(), r.crs_xy.x());
+  EXPECT_DOUBLE_EQ(j["center_lon"].get<double>(), r.centre_latlon.lon_deg);
+  EXPECT_DOUBLE_EQ(j["position_sigma_m"].get<double>(), r.position_sigma_m);
+  EXPECT_DOUBLE_EQ(j["pitch_deg"].get<double>(), r.pitch_deg);
+  const std::string text = LocateResultText(r);
+  EXPECT_NE(text.find(fmt::format("  vehicle    : {:.7f}, {:.7f} (+-", r.latlon.lat_deg,
+                                  r.latlon.lon_deg)),
+            std::string::npos)
+      << text;
+  EXPECT_NE(text.find("  attitude   : roll "), std::string::npos) << text;
+  EXPECT_NE(text.find("(image centre's ground point)"), std::string::npos) << text;
+
+  // Not localized: the positions and the sigma are null, the attitude stays a number.
+  const nlohmann::json none = LocateResultJson(maploc::LocateResult{});
+  for (const char* key : {"lat", "lon", "x", "y", "center_lat", "center_lon", "position_sigma_m"})
+    EXPECT_TRUE(none[key].is_null()) << key;
+  EXPECT_TRUE(none["roll_deg"].is_number());
+}
+
+TEST_F(NaipPerspective, CameraFileOfAnotherSizeSameAsHfov) {
+  // The same 90 deg camera at twice the resolution: scaled to the frame.
+  const std::string yaml = testing::WriteFile(
+      *dir_ / "sensor.yaml",
+      "sensor_type: camera\n"
+      "T_BS:\n  cols: 4\n  rows: 4\n  data: [1,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,0,1]\n"
+      "resolution: [512, 512]\ncamera_model: pinhole\n"
+      "intrinsics: [256, 256, 255.5, 255.5]\ndistortion_model: none\n");
+  MapLocateOptions o = WithAttitude(Options());
+  o.camera_path = yaml;
+  const maploc::LocateResult r = MapLocateRun(o).LocateImage(Path("frame.png"));
+  ASSERT_TRUE(r.localized) << r.reason;
+  EXPECT_LT(Distance(r.latlon, *vehicle_), 10.0);
+  EXPECT_NEAR(r.altitude_m, 700, 35);
+
+  o.camera_path = Path("missing.yaml");
+  EXPECT_ERROR(MapLocateRun{o}, {.file = "missing.yaml"}, "cannot open file");
+  const std::string bad = testing::WriteFile(
+      *dir_ / "bad_sensor.yaml",
+      "T_BS:\n  cols: 4\n  rows: 4\n  data: [1,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,0,1]\n"
+      "resolution: [512, 512]\nintrinsics: [256, 256, 255.5]\n");
+  o.camera_path = bad;
+  EXPECT_ERROR(MapLocateRun{o}, {.file = "bad_sensor.yaml", .field = "intrinsics"}, "");
+}
+
+TEST_F(NaipPerspective, OptionsCheckNamesTheFlag) {
+  MapLocateOptions o = Options();
+  EXPECT_EQ(o.Check(), "");
+  o.pitch_deg = 85;
+  EXPECT_EQ(o.Check(), "--attitude roll and pitch must be within +-80 deg");
+  o = Options();
+  o.altitude_m = 0;
+  EXPECT_EQ(o.Check(), "--altitude must be positive");
+  o = Options();
+  o.attitude_sigma_deg = 0;
+  EXPECT_EQ(o.Check(), "--attitude-sigma must be in (0, 90) deg");
+  o = Options();
+  o.hfov_deg = 180;
+  EXPECT_EQ(o.Check(), "--hfov must be in (0, 180) deg");
+  o.hfov_deg = 60;
+  EXPECT_EQ(o.Check(), "");
+  o.camera_path = "sensor.yaml";
+  EXPECT_EQ(o.Check(), "--camera and --hfov exclude each other");
+}
+
+// --images-from: columns by the header in any order (after a UTF-8 BOM, as spreadsheets save
+// it), the three optional ones, empty fields falling back to the options, row errors naming the
+// field, header errors naming the column.
+TEST_F(NaipPerspective, ListColumnsByTheHeader) {
+  const MapLocateOptions with = WithAttitude(Options());
+  const maploc::LocateResult direct = MapLocateRun(with).LocateImage(Path("frame.png"));
+  ASSERT_TRUE(direct.localized) << direct.reason;
+  const geo::LatLon p = *with.prior;
+  const std::string frame = Path("frame.png");
+  const std::string list = testing::WriteFile(
+      *dir_ / "list.csv",
+      "\xEF\xBB\xBFpitch_deg,image,roll_deg,heading_sigma_deg,prior_lon,altitude_m,prior_lat,"
+      "heading_deg,"
+      "radius_m\n" +
+          fmt::format("12.8,{},-6.5,10,{:.9f},660,{:.9f},40,300\n", frame, p.lon_deg, p.lat_deg) +
+          fmt::format(",{},,,{:.9f},,{:.9f},40,300\n", frame, p.lon_deg, p.lat_deg) +
+          fmt::format("abc,{},,,,,,,\n", frame) + fmt::format("85,{},,,,,,,\n", frame) +
+          fmt::format(",{},,,,-5,,,\n", frame) + fmt::format(",{},1,2\n", frame));
+  std::vector<nlohmann::json> out;
+  const auto collect = [&](const nlohmann::json& j) { out.push_back(j); };
+  MapLocateRun(Options()).LocateList(list, collect);  // no attitude or altitude in the options
+  ASSERT_EQ(out.size(), 6u);
+  // Row 2 gives what `with` gives: the same fix.
+  ASSERT_EQ(out[0]["localized"], true) << out[0].dump();
+  EXPECT_DOUBLE_EQ(out[0]["lat"].get<double>(), direct.latlon.lat_deg);
+  EXPECT_DOUBLE_EQ(out[0]["lon"].get<double>(), direct.latlon.lon_deg);
+  EXPECT_DOUBLE_EQ(out[0]["altitude_m"].get<double>(), direct.altitude_m);
+  // Row 3 leaves them empty: unknown here (the fix differs) ...
+  ASSERT_EQ(out[1]["localized"], true) << out[1].dump();
+  EXPECT_NE(out[1]["altitude_m"].get<double>(), direct.altitude_m);
+  const auto reason = [&](int k) { return out[k]["reason"].get<std::string>(); };
+  EXPECT_EQ(reason(2), "error: " + list + ":4: field 'pitch_deg': not a number: 'abc'");
+  EXPECT_EQ(reason(3), "error: " + list + ":5: field 'pitch_deg': must be within +-80 deg");
+  EXPECT_EQ(reason(4), "error: " + list + ":6: field 'altitude_m': must be positive");
+  EXPECT_EQ(reason(5), "error: " + list + ":7: expected 9 fields, found 4");
+  for (int k = 2; k < 6; ++k) EXPECT_EQ(out[k]["image"], frame);
+  // ... and the options' values when they have them.
+  out.clear();
+  MapLocateRun(with).LocateList(list, collect);
+  ASSERT_EQ(out.size(), 6u);
+  ASSERT_EQ(out[1]["localized"], true) << out[1].dump();
+  EXPECT_DOUBLE_EQ(out[1]["lat"].get<double>(), direct.latlon.lat_deg);
+  EXPECT_DOUBLE_EQ(out[1]["altitude_m"].get<double>(), direct.altitude_m);
+
+  MapLocateRun run(Options());
+  const auto header_error = [&](const std::string& header) {
+    return run.LocateList(testing::WriteFile(*dir_ / "h.csv", header + "\n" + frame + "\n"),
+                          collect);
+  };
+  EXPECT_ERROR(header_error("image,yaw_deg"), {.file = "h.csv", .line = 1, .field = "yaw_deg"},
+               "unknown column 'yaw_deg' in the header");
+  EXPECT_ERROR(header_error("prior_lat,prior_lon"), {.file = "h.csv", .line = 1, .field = "image"},
+               "the header has no 'image' column");
+  EXPECT_ERROR(header_error("image,roll_deg,roll_deg"),
+               {.file = "h.csv", .line = 1, .field = "roll_deg"},
+               "column 'roll_deg' appears twice");
 }
 
 }  // namespace

@@ -45,22 +45,23 @@ std::string StepsCsv(const nav::MissionResult& r) {
   std::string s =
       "step,t_s,true_lat,true_lon,est_lat,est_lon,est_error_m,est_sigma_m,fix_found,"
       "fix_accepted,fix_method,fix_lat,fix_lon,fix_error_m,inliers,odometry_ok,global_search,"
-      "command_heading_deg,truth_heading_deg,altitude_m,synthesis_ms,extraction_ms,matching_ms,"
+      "command_heading_deg,truth_heading_deg,altitude_m,roll_deg,pitch_deg,synthesis_ms,"
+      "extraction_ms,matching_ms,"
       "estimation_ms,odometry_ms,navigation_ms,reason\n";
   for (const nav::StepLog& l : r.steps) {
     std::string reason = l.fix_reason;
     std::replace(reason.begin(), reason.end(), '"', '\'');
     s += fmt::format(
         "{},{:.3f},{:.8f},{:.8f},{:.8f},{:.8f},{:.2f},{:.2f},{:d},{:d},{},{},{},{},{},{:d},{:d},"
-        "{:.2f},{:.2f},{:.1f},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},\"{}\"\n",
+        "{:.2f},{:.2f},{:.1f},{:.2f},{:.2f},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},\"{}\"\n",
         l.step, l.t_s, l.truth.lat_deg, l.truth.lon_deg, l.estimate.lat_deg, l.estimate.lon_deg,
         l.estimate_error_m, l.estimate_sigma_m, l.fix_found, l.fix_accepted, l.fix_method,
         l.fix_found ? fmt::format("{:.8f}", l.fix.lat_deg) : "",
         l.fix_found ? fmt::format("{:.8f}", l.fix.lon_deg) : "",
         l.fix_found ? fmt::format("{:.2f}", l.fix_error_m) : "", l.inliers, l.odometry_ok,
-        l.global_search, l.command_heading_deg, l.truth_heading_deg, l.altitude_m,
-        l.times.synthesis_ms, l.times.extraction_ms, l.times.matching_ms, l.times.estimation_ms,
-        l.times.odometry_ms, l.times.navigation_ms, reason);
+        l.global_search, l.command_heading_deg, l.truth_heading_deg, l.altitude_m, l.roll_deg,
+        l.pitch_deg, l.times.synthesis_ms, l.times.extraction_ms, l.times.matching_ms,
+        l.times.estimation_ms, l.times.odometry_ms, l.times.navigation_ms, reason);
   }
   return s;
 }
@@ -311,6 +312,8 @@ nlohmann::json SettingsJson(const MissionExperimentOptions& opt, const Setup& s)
           {"odometry", o.use_odometry},
           {"wind_m_s", o.wind_m_s},
           {"compass_bias_deg", o.compass_bias_deg},
+          {"max_tilt_deg", o.effects.max_tilt_deg},
+          {"attitude_noise_deg", o.attitude_noise_deg},
           {"seed", o.seed}};
 }
 

@@ -289,6 +289,15 @@ ErrorSeries ComputeApe(const Trajectory& ref, const Trajectory& est, PoseRelatio
   return out;
 }
 
+double MeanErrorAfterStartPose(const Trajectory& ref, const Trajectory& est) {
+  if (ref.size() != est.size())
+    throw Error("the start-pose error needs synchronized trajectories of equal size");
+  if (ref.empty()) throw Error("the start-pose error of empty trajectories");
+  Trajectory aligned = est;
+  AlignTrajectory(ref, &aligned, {.mode = AlignMode::kNone, .align_origin = true});
+  return ComputeApe(ref, aligned, PoseRelation::kTranslation).stats.mean;
+}
+
 std::optional<DeltaUnit> ParseDeltaUnit(const std::string& name) {
   if (name == "frames" || name == "f") return DeltaUnit::kFrames;
   if (name == "m") return DeltaUnit::kMeters;

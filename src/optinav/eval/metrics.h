@@ -87,6 +87,13 @@ struct ErrorSeries {
 
 ErrorSeries ComputeApe(const Trajectory& ref, const Trajectory& est, PoseRelation relation);
 
+// The weather document's metric (docs SEEDS.md part 1, "mean localization error"): the estimate
+// put on the reference's first pose (est <- ref_0 * est_0^-1 * est, no fit over the run, so
+// drift counts in full as it does for a SLAM system started at a known pose), then the mean over
+// all pairs of the Euclidean distance between the positions. `ref` and `est` are a synchronized
+// pair (Synchronize()); throws Error when they are empty or of different sizes.
+double MeanErrorAfterStartPose(const Trajectory& ref, const Trajectory& est);
+
 enum class DeltaUnit { kFrames, kMeters, kSeconds, kRadians, kDegrees };
 std::optional<DeltaUnit> ParseDeltaUnit(const std::string& name);  // frames|m|s|rad|deg
 std::string DeltaUnitName(DeltaUnit unit);

@@ -135,6 +135,34 @@ TEST(Alignment, Sim3ScaleOnlyPosYawAndOrigin) {
                "alignment needs at least 3 pose pairs, got 2");
 }
 
+TEST(MeanErrorAfterStartPose, StartPoseOnlyThenMeanDistance) {
+  // The estimate: the reference in another frame (yawed 0.7 rad, shifted) and drifting 0.5 m
+  // along the reference's y per pose after the first: the start pose removes the frame, the
+  // drift stays; errors 0, 0.5, 1, 1.5, 2 -> mean 1.0 (an RMSE would be sqrt(1.5)).
+  const Trajectory ref = Square(0, 0);
+  Trajectory drifted = ref;
+  for (size_t i = 0; i < drifted.size(); ++i) drifted.positions[i].y() += 0.5 * i;
+  Trajectory est = drifted;
+  est.Transform(Sim3d{1.0, ExpSO3(Eigen::Vector3d(0, 0, 0.7)), Eigen::Vector3d(3, -2, 1)});
+  EXPECT_NEAR(MeanErrorAfterStartPose(ref, est), 1.0, 1e-12);
+  // A fit over the whole run (SE(3)) would hide part of the drift: the start pose does not.
+  Trajectory se3 = est;
+  AlignTrajectory(ref, &se3, {.mode = AlignMode::kSe3});
+  EXPECT_LT(ComputeApe(ref, se3, PoseRelation::kTranslation).stats.mean, 0.9);
+  // Positions turned 0.1 rad about the start (the start pose itself right): the error grows with
+  // the horizontal distance from the start, 2 sin(0.05) |p_xy|.
+  Trajectory turned = ref;
+  turned.Transform(Sim3d{1.0, ExpSO3(Eigen::Vector3d(0, 0, 0.1)), Eigen::Vector3d::Zero()});
+  for (size_t i = 0; i < turned.size(); ++i) turned.rotations[i] = ref.rotations[i];
+  double expected = 0;
+  for (size_t i = 0; i < ref.size(); ++i)
+    expected += 2 * std::sin(0.05) * ref.positions[i].head<2>().norm() / ref.size();
+  EXPECT_NEAR(MeanErrorAfterStartPose(ref, turned), expected, 1e-12);
+  EXPECT_ERROR(MeanErrorAfterStartPose(ref, FromStamps({1, 2})), {},
+               "synchronized trajectories of equal size");
+  EXPECT_ERROR(MeanErrorAfterStartPose(Trajectory{}, Trajectory{}), {}, "empty trajectories");
+}
+
 // A straight line along x with poses every `step` metres.
 Trajectory LineTraj(int n, double step) {
   Trajectory t;

@@ -119,6 +119,21 @@ awk -v a="$lat" -v b="$lon" 'BEGIN { d = sqrt(((a - 47.0186) * 111200)^2 + ((b +
   exit !(d < 25) }' || fail "rendered frame localized $lat,$lon, more than 25 m from 47.0186,-99.1526"
 expect_error "render outside" "outside the orthophoto" "$BIN" map render \
   --ortho "$NAIP/naip_20170827.tif" --at 10,10 --out "$WORK/o.png"
+# True perspective (issue 18): attitude and altitude; an acceptance set with its CSVs.
+expect_ok "map render attitude" "$BIN" map render --ortho "$NAIP/naip_20170827.tif" \
+  --at 47.0186,-99.1526 --heading 35 --altitude 700 --roll -5 --pitch 12 --hfov 90 \
+  --frame-size 320x240 --out "$WORK/tilted.png"
+grep -q "roll -5.0, pitch 12.0, altitude 700.0 m" "$WORK/out.txt" || fail "render attitude: $(cat "$WORK/out.txt")"
+expect_ok "map render set" "$BIN" map render --ortho "$NAIP/naip_20170827.tif" --set 3 --seed 4 \
+  --frame-size 256x256 --out-dir "$WORK/set"
+[[ -s "$WORK/set/frame_002.jpg" && $(wc -l < "$WORK/set/frames.csv") -eq 4 ]] || fail "render set files"
+head -1 "$WORK/set/frames.csv" | grep -qx \
+  "image,prior_lat,prior_lon,radius_m,heading_deg,heading_sigma_deg,altitude_m,roll_deg,pitch_deg" \
+  || fail "render set: frames.csv header"
+expect_error "render --set with --at" "field '--at'" "$BIN" map render \
+  --ortho "$NAIP/naip_20170827.tif" --set 3 --at 47.0186,-99.1526 --out-dir "$WORK/set"
+expect_error "render --tilt with --roll" "field '--tilt'" "$BIN" map render \
+  --ortho "$NAIP/naip_20170827.tif" --at 47.0186,-99.1526 --tilt 5 --roll 3 --out "$WORK/t.png"
 printf 'image,prior_lat,prior_lon,radius_m,heading_deg,heading_sigma_deg\n%s,,,,,\n%s,,,,,\n' \
   "$DATA/images/box.png" "$WORK/missing.png" > "$WORK/list.csv"
 expect_ok "locate list" "$BIN" map locate --map "$WORK/naip.db" --images-from "$WORK/list.csv"
@@ -425,6 +440,59 @@ expect_exit 1 "map info --check on a damaged map" \
 expect_exit 1 "map info on a damaged map" "tile 2 is damaged" "$BIN" map info "$WORK/damaged.db"
 expect_exit 1 "map locate on a damaged map" "tile 2 is damaged" "$BIN" map locate \
   --map "$WORK/damaged.db" --image "$WORK/f2017.png"
+
+# --- map locate on a perspective frame (issue 18): attitude, altitude, the vehicle's position.
+expect_ok "render pitched frame" "$BIN" map render --ortho "$NAIP/naip_20170827.tif" \
+  --at 47.0186,-99.1526 --heading 35 --altitude 700 --roll -5 --pitch 12 --frame-size 256x256 \
+  --out "$WORK/pitched.png"
+expect_ok "locate pitched frame" "$BIN" map locate --map "$WORK/naip.db" --image "$WORK/pitched.png" \
+  --prior 47.0195,-99.1510 --radius 300 --heading 30 --attitude -5.5,12.5 --altitude 660 --json
+for key in '"center_lat"' '"center_lon"' '"position_sigma_m"' '"roll_deg"' '"pitch_deg"' \
+  '"altitude_m"'; do
+  grep -q "$key" "$WORK/out.txt" || fail "locate --json lacks $key"
+done
+lat=$(grep '"lat"' "$WORK/out.txt" | tr -dc '0-9.-'); lon=$(grep '"lon"' "$WORK/out.txt" | tr -dc '0-9.-')
+awk -v a="$lat" -v b="$lon" 'BEGIN { d = sqrt(((a - 47.0186) * 111200)^2 + ((b + 99.1526) * 75800)^2);
+  exit !(d < 25) }' || fail "pitched frame: vehicle at $lat,$lon, more than 25 m from 47.0186,-99.1526"
+printf 'pitch_deg,image,roll_deg,altitude_m,prior_lat,prior_lon,heading_deg\n12.5,%s,-5.5,660,47.0195,-99.1510,30\n' \
+  "$WORK/pitched.png" > "$WORK/list2.csv"
+expect_ok "locate list, columns reordered" "$BIN" map locate --map "$WORK/naip.db" \
+  --images-from "$WORK/list2.csv" --radius 300
+grep -q '"localized":true' "$WORK/out.txt" || fail "list with attitude columns: $(cat "$WORK/out.txt")"
+printf 'image,yaw_deg\n%s,3\n' "$WORK/pitched.png" > "$WORK/list3.csv"
+expect_exit 1 "locate list unknown column" "list3.csv:1: field 'yaw_deg': unknown column" "$BIN" \
+  map locate --map "$WORK/naip.db" --images-from "$WORK/list3.csv"
+expect_exit 2 "locate bad --attitude" "field '--attitude'" "$BIN" map locate --map "$WORK/naip.db" \
+  --image "$WORK/pitched.png" --attitude 5
+expect_exit 2 "locate --attitude out of range" "field '--attitude': roll and pitch must be within" \
+  "$BIN" map locate --map "$WORK/naip.db" --image "$WORK/pitched.png" --attitude 5,95
+expect_exit 2 "locate --camera with --hfov" "field '--camera'" "$BIN" map locate \
+  --map "$WORK/naip.db" --image "$WORK/pitched.png" --hfov 90 --camera "$WORK/sensor.yaml"
+expect_exit 1 "locate --camera missing" "$WORK/nosuch/sensor.yaml" "$BIN" map locate \
+  --map "$WORK/naip.db" --image "$WORK/pitched.png" --camera "$WORK/nosuch/sensor.yaml"
+
+# --- bench weather (issue 19): argument errors exit 2 naming the flag, before any rendering.
+expect_exit 2 "bench weather bad level" "field '--conditions': weather intensity 150 % is outside" \
+  "$BIN" bench weather --out "$WORK/bw" --conditions none,fog:150
+expect_exit 2 "bench weather unknown kind" "field '--conditions': unknown weather 'smog'" \
+  "$BIN" bench weather --out "$WORK/bw" --conditions smog:50
+expect_exit 2 "bench weather road on terrain" "field '--conditions': road-* apply to the urban" \
+  "$BIN" bench weather --out "$WORK/bw" --worlds terrain --conditions road-snow:50
+expect_exit 2 "bench weather unknown world" "field '--worlds': unknown world 'moon'" \
+  "$BIN" bench weather --out "$WORK/bw" --worlds urban,moon
+expect_exit 2 "bench weather unknown mode" "field '--modes': unknown mode 'mono'" \
+  "$BIN" bench weather --out "$WORK/bw" --modes mono
+expect_exit 2 "bench weather seeds" "field '--seeds': must be >= 1" \
+  "$BIN" bench weather --out "$WORK/bw" --seeds 0
+expect_exit 2 "bench weather jobs" "field '--jobs': must be >= 1" \
+  "$BIN" bench weather --out "$WORK/bw" --jobs 0
+expect_exit 2 "bench weather scale" "field '--scale'" "$BIN" bench weather --out "$WORK/bw" --scale 0
+expect_exit 2 "bench weather without --out" "--out is required" "$BIN" bench weather
+expect_exit 2 "bench weather bad --log-level" "unknown log level 'loud'" \
+  "$BIN" bench weather --out "$WORK/bw" --log-level loud
+[[ -e "$WORK/bw" ]] && fail "bench weather created its output folder on bad arguments"
+"$BIN" bench weather --help 2>/dev/null | grep -q -- "--reuse" || fail "bench weather --help lacks --reuse"
+"$BIN" bench --help 2>/dev/null | grep -q "optinav bench weather" || fail "bench --help lacks weather"
 
 if [[ $failures -gt 0 ]]; then echo "$failures failure(s)"; exit 1; fi
 echo "all CLI checks passed"

@@ -70,7 +70,7 @@ int RunInfo(const std::string& path, bool json, bool check) {
 }
 
 struct LocateFlags {
-  std::string image, list, prior, last_fix, method = "auto", deviations = "20,40";
+  std::string image, list, prior, last_fix, method = "auto", deviations = "20,40", attitude;
   bool json = false;
   app::MapLocateOptions options;
 };
@@ -80,7 +80,8 @@ void AddLocate(CLI::App& app, LocateFlags& f) {
   app.add_option("--map", o.map_path, "map database")->required();
   app.add_option("--image", f.image, "frame to localize");
   app.add_option("--images-from", f.list,
-                 "csv 'image,prior_lat,prior_lon,radius_m,heading_deg,heading_sigma_deg'");
+                 "csv 'image,prior_lat,prior_lon,radius_m,heading_deg,heading_sigma_deg"
+                 "[,altitude_m,roll_deg,pitch_deg]' (columns by the header, any order)");
   app.add_option("--prior", f.prior, "approximate position LAT,LON");
   app.add_option("--radius", o.radius_m, "prior radius (m)")->capture_default_str();
   app.add_option("--last-fix", f.last_fix, "prediction: last fix LAT,LON");
@@ -92,6 +93,11 @@ void AddLocate(CLI::App& app, LocateFlags& f) {
   app.add_option("--heading-sigma", o.heading_sigma_deg, "heading uncertainty (deg)")
       ->capture_default_str();
   app.add_option("--altitude", o.altitude_m, "approximate altitude above ground (m)");
+  app.add_option("--attitude", f.attitude, "ROLL,PITCH (deg; roll right wing down, pitch nose up)");
+  app.add_option("--attitude-sigma", o.attitude_sigma_deg, "1-sigma error of roll and pitch (deg)")
+      ->capture_default_str();
+  app.add_option("--hfov", o.hfov_deg, "horizontal field of view (deg; default: the map's)");
+  app.add_option("--camera", o.camera_path, "EuRoC sensor.yaml: intrinsics and distortion");
   app.add_option("--ortho", o.ortho_path, "orthophoto path if moved since the build (for oc)");
   app.add_option("--method", f.method, "auto|features|oc")->capture_default_str();
   app.add_flag("--json", f.json, "print the result as JSON");
@@ -108,7 +114,12 @@ int RunLocate(LocateFlags f) {
   if (!f.prior.empty()) o.prior = ParseLatLon(f.prior, "--prior");
   if (!f.last_fix.empty()) o.last_fix = ParseLatLon(f.last_fix, "--last-fix");
   o.deviations_deg = ParseNumberList(f.deviations, "--deviations");
-  cli::ThrowIfInvalid(o.Check(), "");
+  if (!f.attitude.empty()) {
+    const std::vector<double> a = ParseNumbers(f.attitude, 2, "ROLL,PITCH", "--attitude");
+    o.roll_deg = a[0];
+    o.pitch_deg = a[1];
+  }
+  cli::ThrowIfCheckFailed(o.Check());
   app::MapLocateRun run(o);
   if (f.list.empty()) {
     const maploc::LocateResult r = run.LocateImage(f.image);
@@ -126,30 +137,69 @@ int RunLocate(LocateFlags f) {
 }
 
 struct RenderFlags {
-  std::string at, frame_size = "640x480";
+  std::string at, frame_size = "640x480", out_dir;
+  double altitude = 0, hfov = 0, tilt = 0;
+  int set = 0;
+  uint64_t seed = 1;
   app::FrameRenderOptions options;
+  std::vector<CLI::Option*> single;  // flags of the one-frame mode
 };
 
 void AddRender(CLI::App& app, RenderFlags& f) {
   app::FrameRenderOptions& o = f.options;
   app.add_option("--ortho", o.ortho_path, "orthophoto (GeoTIFF)")->required();
-  app.add_option("--at", f.at, "ground point under the frame centre LAT,LON")->required();
-  app.add_option("--heading", o.heading_deg, "frame up direction, deg clockwise from north");
-  app.add_option("--gsd", o.gsd_m, "metres per frame pixel (default: the map's)");
+  f.single = {
+      app.add_option("--at", f.at, "vehicle position LAT,LON (with --tilt: frame centre)"),
+      app.add_option("--heading", o.heading_deg, "yaw: frame up, deg clockwise from north"),
+      app.add_option("--gsd", o.gsd_m, "metres per frame pixel at nadir (default: the map's)"),
+      app.add_option("--roll", o.roll_deg, "roll, deg, right wing down positive"),
+      app.add_option("--pitch", o.pitch_deg, "pitch, deg, nose up positive"),
+      app.add_option("--tilt", f.tilt, "legacy tilt model: camera tilt from nadir (deg)"),
+      app.add_option("--tilt-azimuth", o.tilt_azimuth_deg, "legacy: tilt direction in the frame"),
+      app.add_option("--out", o.out_path, "output image (PNG, JPEG)")};
+  app.add_option("--altitude", f.altitude, "height above ground (m); with --set: nominal (640)");
+  app.add_option("--hfov", f.hfov, "horizontal field of view (deg, default 90)");
   app.add_option("--frame-size", f.frame_size, "WxH")->capture_default_str();
-  app.add_option("--tilt", o.tilt_deg, "camera tilt from nadir (deg)");
-  app.add_option("--tilt-azimuth", o.tilt_azimuth_deg, "tilt direction in the frame (deg)");
-  app.add_option("--out", o.out_path, "output image (PNG, JPEG)")->required();
+  app.add_option("--set", f.set, "write an acceptance set of N seeded frames to --out-dir");
+  app.add_option("--seed", f.seed, "seed of the set")->capture_default_str();
+  app.add_option("--out-dir", f.out_dir, "folder of the set (frames, frames.csv, truth.csv)");
 }
 
-int RunRender(RenderFlags f) {
+int RunRenderSet(const RenderFlags& f, CLI::App& app) {
+  for (const CLI::Option* opt : f.single) {
+    if (opt->count() > 0)
+      throw cli::UsageError(opt->get_name() + " is not used with --set", opt->get_name());
+  }
+  app::FrameSetOptions s{
+      .ortho_path = f.options.ortho_path, .out_dir = f.out_dir, .count = f.set, .seed = f.seed};
+  ParseFrameSize(f.frame_size, "--frame-size", 16, &s.frames.width, &s.frames.height);
+  if (app.count("--altitude")) s.frames.altitude_m = f.altitude;
+  if (app.count("--hfov")) s.frames.hfov_deg = f.hfov;
+  cli::ThrowIfInvalid(s.Check(), "--set");
+  const app::FrameSetSummary r = app::RenderFrameSet(s);
+  std::printf("rendered %d frames into %s (given: %s, truth: %s)\n", r.count, f.out_dir.c_str(),
+              r.frames_csv.c_str(), r.truth_csv.c_str());
+  return 0;
+}
+
+int RunRender(RenderFlags f, CLI::App& app) {
+  if (app.count("--set")) return RunRenderSet(f, app);
   app::FrameRenderOptions& o = f.options;
+  if (f.at.empty()) throw cli::UsageError("--at is required (or --set)", "--at");
+  if (o.out_path.empty()) throw cli::UsageError("--out is required (or --set)", "--out");
+  if (app.count("--out-dir")) throw cli::UsageError("--out-dir needs --set", "--out-dir");
   ParseFrameSize(f.frame_size, "--frame-size", 16, &o.width, &o.height);
   o.at = ParseLatLon(f.at, "--at");
+  if (app.count("--altitude")) o.altitude_m = f.altitude;
+  if (app.count("--hfov")) o.hfov_deg = f.hfov;
+  if (app.count("--tilt")) o.tilt_deg = f.tilt;
+  cli::ThrowIfCheckFailed(o.Check());
   const app::RenderedFrame r = app::RenderFrame(o);
-  std::printf("rendered %s: %dx%d at %.3f m/px, heading %.1f deg, centre %.7f,%.7f\n",
-              o.out_path.c_str(), o.width, o.height, r.gsd_m, o.heading_deg, o.at.lat_deg,
-              o.at.lon_deg);
+  std::printf(
+      "rendered %s: %dx%d at %.3f m/px, heading %.1f deg, roll %.1f, pitch %.1f, "
+      "altitude %.1f m, centre %.7f,%.7f\n",
+      o.out_path.c_str(), o.width, o.height, r.gsd_m, o.heading_deg, o.roll_deg, o.pitch_deg,
+      r.altitude_m, r.centre.lat_deg, r.centre.lon_deg);
   return 0;
 }
 
@@ -178,7 +228,7 @@ int RunMap(int argc, char** argv) {
     if (build->parsed()) return RunBuild(build_flags);
     if (info->parsed()) return RunInfo(info_path, info_json, info_check);
     if (locate->parsed()) return RunLocate(locate_flags);
-    return RunRender(render_flags);
+    return RunRender(render_flags, *render);
   });
 }
 

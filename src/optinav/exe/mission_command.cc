@@ -53,7 +53,11 @@ void AddMissionFlags(CLI::App& app, app::MissionExperimentOptions& a, MissionFla
       ->capture_default_str();
   app.add_option("--compass-bias", o.compass_bias_deg, "heading-hold error, +- deg per run")
       ->capture_default_str();
-  app.add_option("--tilt", o.effects.max_tilt_deg, "max camera tilt (deg)")->capture_default_str();
+  app.add_option("--tilt", o.effects.max_tilt_deg, "max roll/pitch from gusts (deg)")
+      ->capture_default_str();
+  app.add_option("--attitude-noise", o.attitude_noise_deg,
+                 "error of the roll/pitch given to locate (deg, 1-sigma)")
+      ->capture_default_str();
   app.add_option("--blur", o.effects.motion_blur_px, "max motion blur (px)")->capture_default_str();
   app.add_option("--exposure", o.effects.exposure_variation, "exposure change (+- fraction)")
       ->capture_default_str();

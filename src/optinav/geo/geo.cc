@@ -21,7 +21,10 @@ const geod_geodesic& Wgs84() {
 }
 
 std::string ProjError(PJ_CONTEXT* ctx) {
-  return proj_context_errno_string(ctx, proj_context_errno(ctx));
+  // PROJ gives NULL when it failed without setting an error number (found by fuzz/geotiff: a
+  // TIFF whose CRS PROJ cannot instantiate); a std::string from NULL would terminate.
+  const char* text = proj_context_errno_string(ctx, proj_context_errno(ctx));
+  return text != nullptr ? text : "no detail given";
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
 #include "optinav/io/airsim_recording.h"
 
+#include <cmath>
 #include <filesystem>
 #include <map>
 
@@ -125,7 +126,12 @@ AirsimRecording ReadAirsimRecording(const std::string& path, const AirsimReadOpt
     r.throttle = number("Throttle", 0);
     r.steering = number("Steering", 0);
     r.brake = number("Brake", 0);
-    r.gear = static_cast<int>(number("Gear", 0));
+    const double gear = number("Gear", 0);
+    if (!(std::abs(gear) <= 1000)) {  // the cast to int is undefined beyond its range (fuzz)
+      ctx.field = "Gear";
+      throw Error("gear out of range [-1000, 1000]", ctx);
+    }
+    r.gear = static_cast<int>(gear);
     r.handbrake = number("Handbrake", 0) != 0;
     r.rpm = number("RPM", 0);
     r.speed_m_s = number("Speed", 0);
@@ -135,7 +141,8 @@ AirsimRecording ReadAirsimRecording(const std::string& path, const AirsimReadOpt
       const std::string_view name = Trim(images.substr(0, semi));
       if (!name.empty()) {
         const fs::path p = image_dir / std::string(name);
-        if (options.check_images_exist && !fs::is_regular_file(p)) {
+        std::error_code exists_ec;  // a name the OS refuses is a missing image, not a throw
+        if (options.check_images_exist && !fs::is_regular_file(p, exists_ec)) {
           throw Error("image file not found: " + p.string(), ctx);
         }
         r.image_paths.push_back(p.string());

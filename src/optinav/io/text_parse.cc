@@ -213,7 +213,8 @@ bool ParseNumberLine(std::string_view line, char delim, int count, bool first_as
         const char* q = p;
         uint64_t whole = 0, frac = 0;
         q = ParseDigits(q, token_end, &whole);
-        const bool whole_ok = q - p <= 11;
+        // Beyond 9223372035 s the ns count overflows int64: the general parser refuses it.
+        const bool whole_ok = q - p <= 11 && whole <= 9'223'372'035;
         bool any_digit = q > p;
         int frac_digits = 0;
         if (q < token_end && *q == '.') {

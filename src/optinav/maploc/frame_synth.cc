@@ -1,8 +1,14 @@
 #include "optinav/maploc/frame_synth.h"
 
+#include <algorithm>
 #include <cmath>
+#include <random>
 
+#include <fmt/format.h>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+
+#include "optinav/util/error.h"
 
 namespace optinav::maploc {
 
@@ -54,6 +60,246 @@ cv::Mat SynthesizeFrame(const geo::GeoRaster& raster, double map_gsd_m, const Fr
   cv::warpPerspective(img, out, to_img, cv::Size(s.width, s.height),
                       cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT);
   return out;
+}
+
+}  // namespace optinav::maploc
+
+namespace optinav::maploc {
+
+cv::Mat RenderAerialFrame(const geo::GeoRaster& raster, double map_gsd_m, const AerialPose& pose,
+                          const camera::PinholeCamera& camera, Eigen::Matrix3d* map_from_image) {
+  camera.Validate();
+  const Eigen::Matrix3d h = MapFromImage(pose, camera.K(), map_gsd_m);
+  if (map_from_image) *map_from_image = h;
+  std::vector<cv::Point2f> mpts;
+  for (const Eigen::Vector2d& p :
+       {Eigen::Vector2d(0, 0), Eigen::Vector2d(camera.width, 0),
+        Eigen::Vector2d(camera.width, camera.height), Eigen::Vector2d(0, camera.height)}) {
+    const Eigen::Vector3d m = h * p.homogeneous();
+    // A corner ray that meets the plane behind the camera (or at infinity) sees the sky.
+    const Eigen::Vector3d ray =
+        GroundFromCamera(pose, map_gsd_m).rotation * camera.K().inverse() * p.homogeneous();
+    if (!(ray.z() > 1e-6) || std::abs(m.z()) < 1e-12) {
+      throw Error("the camera sees the horizon: a frame corner does not look at the ground",
+                  {.field = "attitude"});
+    }
+    mpts.emplace_back(static_cast<float>(m.x() / m.z()), static_cast<float>(m.y() / m.z()));
+  }
+  const cv::Rect box = cv::boundingRect(mpts);
+  constexpr int kMargin = 4;
+  const cv::Rect win(box.x - kMargin, box.y - kMargin, box.width + 2 * kMargin,
+                     box.height + 2 * kMargin);
+  // Downsample the window by the scale at the principal point (anti-aliasing); the far side of
+  // a tilted view is slightly softer than a real camera would give, the near side as sharp.
+  const Eigen::Vector2d pp(camera.cx, camera.cy);
+  auto to_map = [&](const Eigen::Vector2d& p) { return (h * p.homogeneous()).hnormalized(); };
+  const double centre_scale =
+      std::sqrt(std::abs((to_map(pp + Eigen::Vector2d(1, 0)) - to_map(pp)).x() *
+                             (to_map(pp + Eigen::Vector2d(0, 1)) - to_map(pp)).y() -
+                         (to_map(pp + Eigen::Vector2d(1, 0)) - to_map(pp)).y() *
+                             (to_map(pp + Eigen::Vector2d(0, 1)) - to_map(pp)).x()));
+  const double down = std::max(1.0, 0.8 * centre_scale);
+  const int ow = std::max(1, static_cast<int>(win.width / down));
+  const int oh = std::max(1, static_cast<int>(win.height / down));
+  if (static_cast<double>(ow) * oh > 4.0e8) {
+    throw Error("the view covers too much of the map to render", {.field = "attitude"});
+  }
+  const cv::Mat img = raster.ReadGray(win.x, win.y, win.width, win.height, ow, oh);
+  Eigen::Matrix3d to_img;
+  to_img << ow / static_cast<double>(win.width), 0, -win.x * ow / static_cast<double>(win.width), 0,
+      oh / static_cast<double>(win.height), -win.y * oh / static_cast<double>(win.height), 0, 0, 1;
+  // Pixel conventions: frame pixels as camera::PinholeCamera has them (centres at integers,
+  // what warpPerspective evaluates); map pixels as GDAL (pixel i covers [i, i + 1)), so window-
+  // image pixel i, covering the map from win.x + i * width / ow, has its centre half a pixel on.
+  Eigen::Matrix3d index_of_centre = Eigen::Matrix3d::Identity();
+  index_of_centre.topRightCorner<2, 1>().setConstant(-0.5);
+  const Eigen::Matrix3d img_from_frame = index_of_centre * to_img * h;
+  cv::Matx33d m;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) m(r, c) = img_from_frame(r, c);
+  cv::Mat out;
+  cv::warpPerspective(img, out, m, cv::Size(camera.width, camera.height),
+                      cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT);
+  return out;
+}
+
+}  // namespace optinav::maploc
+
+namespace optinav::maploc {
+
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+double WrapDeg360(double a) {
+  a = std::fmod(a, 360.0);
+  return a < 0 ? a + 360.0 : a;
+}
+
+uint64_t SplitMix64(uint64_t x) {
+  x += 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
+
+}  // namespace
+
+cv::Mat ApplyCameraEffects(const cv::Mat& gray, const CameraEffects& e, uint64_t seed,
+                           std::vector<uchar>* jpeg) {
+  if (jpeg) jpeg->clear();
+  if (gray.type() != CV_8UC1) throw Error("camera effects need an 8-bit grey frame");
+  cv::Mat f;
+  gray.convertTo(f, CV_32F, 1.0 / 255.0);
+  if (e.blur_sigma_px > 0) cv::GaussianBlur(f, f, cv::Size(0, 0), e.blur_sigma_px);
+  if (e.gain != 1.0 || e.gamma != 1.0) {
+    f *= e.gain;
+    cv::min(f, 1.0, f);
+    cv::max(f, 0.0, f);
+    cv::pow(f, e.gamma, f);
+  }
+  f *= 255.0;
+  if (e.noise_sigma > 0) {
+    cv::Mat noise(f.size(), CV_32F);
+    cv::RNG rng(SplitMix64(seed));
+    rng.fill(noise, cv::RNG::NORMAL, 0.0, e.noise_sigma);
+    f += noise;
+  }
+  cv::Mat out;
+  f.convertTo(out, CV_8U);  // rounds and saturates
+  if (e.jpeg_quality > 0) {
+    std::vector<uchar> buf;
+    cv::imencode(".jpg", out, buf, {cv::IMWRITE_JPEG_QUALITY, std::clamp(e.jpeg_quality, 1, 100)});
+    out = cv::imdecode(buf, cv::IMREAD_GRAYSCALE);
+    if (jpeg) *jpeg = std::move(buf);
+  }
+  return out;
+}
+
+std::string PerspectiveFrameOptions::Check() const {
+  if (width < 16 || height < 16)
+    return fmt::format("frame size {}x{} is below 16x16", width, height);
+  if (!(hfov_deg > 1 && hfov_deg < 170)) return "hfov must be in (1, 170) deg";
+  if (!(altitude_m > 0)) return "altitude must be positive";
+  if (!(altitude_min_factor > 0 && altitude_max_factor >= altitude_min_factor)) {
+    return "altitude factors must satisfy 0 < min <= max";
+  }
+  if (!(max_pitch_deg >= 0 && max_pitch_deg < 60 && max_roll_deg >= 0 && max_roll_deg < 60)) {
+    return "pitch and roll limits must be in [0, 60) deg";
+  }
+  if (!(gain_min > 0 && gain_max >= gain_min && gamma_min > 0 && gamma_max >= gamma_min)) {
+    return "gain and gamma ranges must satisfy 0 < min <= max";
+  }
+  if (!(max_blur_sigma_px >= 0 && max_noise_sigma >= 0)) return "blur and noise must be >= 0";
+  if (jpeg_quality_min < 0 || jpeg_quality_max > 100 || jpeg_quality_min > jpeg_quality_max ||
+      (jpeg_quality_min == 0 && jpeg_quality_max != 0)) {
+    return "JPEG quality range must be within 1-100 (or 0, 0 for none)";
+  }
+  if (!(altitude_error_rel >= 0 && altitude_error_rel < 1 && attitude_error_deg >= 0 &&
+        heading_error_deg >= 0 && heading_error_deg <= 180 && prior_offset_m >= 0 &&
+        prior_radius_m > 0)) {
+    return "given-value errors must be >= 0 (altitude error < 1, heading error <= 180) and the "
+           "prior radius positive";
+  }
+  return "";
+}
+
+double RasterGsdMetres(const geo::GeoRaster& raster) {
+  const geo::CrsTransform crs(raster.crs_wkt());
+  const Eigen::Vector2d mid =
+      raster.transform().PixelToCrs(Eigen::Vector2d(0.5 * raster.width(), 0.5 * raster.height()));
+  return raster.transform().UnitsPerPixel() * crs.MetresPerUnit(mid);
+}
+
+std::vector<PerspectiveFrame> MakePerspectiveFrames(const geo::GeoRaster& raster, int count,
+                                                    const PerspectiveFrameOptions& o,
+                                                    uint64_t seed) {
+  if (const std::string e = o.Check(); !e.empty()) throw Error(e, {.field = "frames"});
+  const geo::CrsTransform crs(raster.crs_wkt());
+  const double gsd = RasterGsdMetres(raster);
+  const camera::PinholeCamera cam =
+      camera::PinholeCamera::FromHorizontalFov(o.width, o.height, o.hfov_deg * kDeg);
+  const Eigen::Matrix3d k_inv = cam.K().inverse();
+  auto latlon = [&](const Eigen::Vector2d& px) {
+    return crs.ToLatLon(raster.transform().PixelToCrs(px));
+  };
+  // The outer edges of the corner pixels (pixel centres at integers).
+  const double r = o.width - 0.5, b = o.height - 0.5;
+  const std::array<Eigen::Vector2d, 4> corners = {Eigen::Vector2d(-0.5, -0.5),
+                                                  Eigen::Vector2d(r, -0.5), Eigen::Vector2d(r, b),
+                                                  Eigen::Vector2d(-0.5, b)};
+  // True when every frame corner looks at the ground inside the raster.
+  auto sees_raster = [&](const AerialPose& pose) {
+    const Eigen::Matrix3d h = MapFromImage(pose, cam.K(), gsd);
+    const Eigen::Matrix3d r_gc = GroundFromCamera(pose, gsd).rotation.toRotationMatrix();
+    for (const Eigen::Vector2d& c : corners) {
+      if (!((r_gc * k_inv * c.homogeneous()).z() > 1e-3)) return false;
+      const Eigen::Vector2d m = (h * c.homogeneous()).hnormalized();
+      if (!(m.x() >= 0 && m.y() >= 0 && m.x() <= raster.width() && m.y() <= raster.height())) {
+        return false;
+      }
+    }
+    return true;
+  };
+
+  std::vector<PerspectiveFrame> frames;
+  frames.reserve(std::max(0, count));
+  for (int i = 0; i < count; ++i) {
+    std::mt19937_64 rng(SplitMix64(seed ^ SplitMix64(static_cast<uint64_t>(i) + 1)));
+    std::uniform_real_distribution<double> u01(0, 1);
+    auto uniform = [&](double lo, double hi) { return lo + (hi - lo) * u01(rng); };
+    auto sym = [&](double half) { return half * (2 * u01(rng) - 1); };
+    PerspectiveFrame f;
+    f.camera = cam;
+    AerialPose& pose = f.pose;
+    bool placed = false;
+    for (int attempt = 0; attempt < 1000 && !placed; ++attempt) {
+      pose.nadir_px = {uniform(0, raster.width()), uniform(0, raster.height())};
+      pose.altitude_m = o.altitude_m * uniform(o.altitude_min_factor, o.altitude_max_factor);
+      pose.attitude.yaw_deg = uniform(0, 360);
+      pose.attitude.pitch_deg = sym(o.max_pitch_deg);
+      pose.attitude.roll_deg = sym(o.max_roll_deg);
+      placed = sees_raster(pose);
+    }
+    if (!placed) {
+      throw Error(fmt::format("the raster ({}x{} px at {:.2f} m) is too small for a {}x{} frame "
+                              "at {:.0f} m with a {} deg field of view",
+                              raster.width(), raster.height(), gsd, o.width, o.height,
+                              o.altitude_m * o.altitude_max_factor, o.hfov_deg),
+                  {.file = raster.path()});
+    }
+    f.effects.gain = uniform(o.gain_min, o.gain_max);
+    f.effects.gamma = uniform(o.gamma_min, o.gamma_max);
+    f.effects.blur_sigma_px = uniform(0, o.max_blur_sigma_px);
+    f.effects.noise_sigma = uniform(0, o.max_noise_sigma);
+    f.effects.jpeg_quality =
+        static_cast<int>(std::floor(uniform(o.jpeg_quality_min, o.jpeg_quality_max + 1 - 1e-9)));
+    const uint64_t effects_seed = rng();
+
+    f.image = ApplyCameraEffects(RenderAerialFrame(raster, gsd, pose, cam, &f.map_from_image),
+                                 f.effects, effects_seed, &f.jpeg);
+    f.latlon = latlon(pose.nadir_px);
+    f.centre_px = (f.map_from_image * Eigen::Vector3d(cam.cx, cam.cy, 1.0)).hnormalized();
+    f.centre_latlon = latlon(f.centre_px);
+    // The yaw is relative to the raster's up direction; its true bearing at the vehicle turns it
+    // into a heading from true north (meridian convergence, or a rotated raster).
+    const double up_bearing =
+        geo::GeodesicInverse(f.latlon, latlon(pose.nadir_px + Eigen::Vector2d(0, -20)))
+            .azimuth1_deg;
+    f.heading_deg = WrapDeg360(pose.attitude.yaw_deg + up_bearing);
+
+    // What locate is given.
+    const double offset = o.prior_offset_m * std::sqrt(u01(rng));
+    f.prior = geo::GeodesicDirect(f.latlon, uniform(0, 360), offset);
+    f.prior_radius_m = o.prior_radius_m;
+    f.given_heading_deg = WrapDeg360(f.heading_deg + sym(o.heading_error_deg));
+    f.heading_sigma_deg = o.heading_error_deg;
+    f.given_altitude_m = pose.altitude_m * (1 + sym(o.altitude_error_rel));
+    f.given_roll_deg = pose.attitude.roll_deg + sym(o.attitude_error_deg);
+    f.given_pitch_deg = pose.attitude.pitch_deg + sym(o.attitude_error_deg);
+    frames.push_back(std::move(f));
+  }
+  return frames;
 }
 
 }  // namespace optinav::maploc

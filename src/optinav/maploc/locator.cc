@@ -12,6 +12,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "optinav/geo/raster.h"
+#include "optinav/maploc/aerial_camera.h"
 #include "optinav/util/timer.h"
 
 namespace optinav::maploc {
@@ -19,6 +20,10 @@ namespace optinav::maploc {
 namespace {
 
 constexpr double kDeg = M_PI / 180.0;
+// Calibration of position_sigma_m (docs/MAPDB.md): the factors that make the true error lie
+// within 2 sigma for >= 90 % of the fixes of the perspective-frame acceptance set.
+constexpr double kFeatureSigmaScale = 3.0;
+constexpr double kCorrelationSigmaScale = 1.0;
 
 cv::Mat ToGray(const cv::Mat& frame) {
   if (frame.empty()) return {};
@@ -88,10 +93,152 @@ struct OcLevel {
 };
 
 struct OcPeak {
-  double score = -1e300, x = 0, y = 0, heading = 0, second = 0;
+  double score = -1e300, x = 0, y = 0, heading = 0, second = 0, scale = 1;
 };
 
+cv::Matx33d ToCv(const Eigen::Matrix3d& m) {
+  cv::Matx33d c;
+  for (int r = 0; r < 3; ++r)
+    for (int k = 0; k < 3; ++k) c(r, k) = m(r, k);
+  return c;
+}
+
+Eigen::Matrix3d ToEigen(const cv::Matx33d& c) {
+  Eigen::Matrix3d m;
+  for (int r = 0; r < 3; ++r)
+    for (int k = 0; k < 3; ++k) m(r, k) = c(r, k);
+  return m;
+}
+
+Eigen::Vector2d Apply(const Eigen::Matrix3d& h, const Eigen::Vector2d& p) {
+  return (h * p.homogeneous()).hnormalized();
+}
+
+// Point matches between a work image and the map from block-wise orientation correlation around
+// the similarity `map_from_work`: the work image is warped onto the map's level grid, cut into
+// blocks, and each block's best shift within a few level pixels is kept when it is distinct.
+void BlockMatches(const OcLevel& lv, const cv::Mat& gray, const cv::Mat& valid,
+                  const Eigen::Matrix3d& map_from_work, double to_map, int search, int stride,
+                  std::vector<Eigen::Vector2d>* work_pts, std::vector<Eigen::Vector2d>* map_pts) {
+  constexpr int kBlock = 32;
+  // Level pixel i covers map pixels [i, i + 1) x to_map (GDAL's convention): its centre, where
+  // the level's arrays sample, is at map (i + 0.5) x to_map.
+  Eigen::Matrix3d level_from_map = Eigen::Vector3d(1.0 / to_map, 1.0 / to_map, 1.0).asDiagonal();
+  level_from_map.topRightCorner<2, 1>().setConstant(-0.5);
+  const Eigen::Matrix3d level_from_work = level_from_map * map_from_work;
+  std::vector<cv::Point2f> corners;
+  for (const Eigen::Vector2d& p :
+       {Eigen::Vector2d(0, 0), Eigen::Vector2d(gray.cols, 0), Eigen::Vector2d(gray.cols, gray.rows),
+        Eigen::Vector2d(0, gray.rows)}) {
+    const Eigen::Vector2d q = Apply(level_from_work, p);
+    corners.emplace_back(static_cast<float>(q.x()), static_cast<float>(q.y()));
+  }
+  const cv::Rect box = cv::boundingRect(corners);
+  if (box.area() <= 0 || box.area() > 4'000'000) return;
+  Eigen::Matrix3d shift = Eigen::Matrix3d::Identity();
+  shift(0, 2) = -box.x;
+  shift(1, 2) = -box.y;
+  Eigen::Matrix3d canvas_from_work = shift * level_from_work;
+  canvas_from_work /= canvas_from_work(2, 2);
+  const cv::Matx33d m = ToCv(canvas_from_work);
+  const bool shrink = std::abs(canvas_from_work.block<2, 2>(0, 0).determinant()) < 1;
+  cv::Mat warped, warped_valid;
+  cv::warpPerspective(gray, warped, m, box.size(), shrink ? cv::INTER_AREA : cv::INTER_LINEAR,
+                      cv::BORDER_CONSTANT);
+  cv::warpPerspective(valid, warped_valid, m, box.size(), cv::INTER_NEAREST, cv::BORDER_CONSTANT);
+  cv::erode(warped_valid, warped_valid, cv::Mat(), cv::Point(-1, -1), 2);
+  const cv::Mat field = OrientationField(warped, warped_valid);
+  const Eigen::Matrix3d work_from_canvas = canvas_from_work.inverse();
+  cv::Mat result;
+  for (int by = 0; by + kBlock <= field.rows; by += stride) {
+    for (int bx = 0; bx + kBlock <= field.cols; bx += stride) {
+      const cv::Rect b(bx, by, kBlock, kBlock);
+      if (cv::countNonZero(warped_valid(b)) < kBlock * kBlock * 0.9) continue;
+      const cv::Mat tpl = field(b);
+      // The map window: the block's place on the level grid, widened by the search range.
+      const cv::Rect win(box.x + bx - search, box.y + by - search, kBlock + 2 * search,
+                         kBlock + 2 * search);
+      if ((win & cv::Rect(0, 0, lv.field.cols, lv.field.rows)) != win) continue;
+      double energy = 0;
+      for (int y = 0; y < kBlock; ++y) {
+        const cv::Vec2f* t = tpl.ptr<cv::Vec2f>(y);
+        for (int x = 0; x < kBlock; ++x) energy += std::hypot(t[x][0], t[x][1]);
+      }
+      if (energy < 0.15 * kBlock * kBlock) continue;  // flat: no structure to align
+      cv::matchTemplate(lv.field(win), tpl, result, cv::TM_CCORR);
+      cv::Point best;
+      double best_v = 0;
+      cv::minMaxLoc(result, nullptr, &best_v, nullptr, &best);
+      if (best.x == 0 || best.y == 0 || best.x == result.cols - 1 || best.y == result.rows - 1) {
+        continue;  // at the search border: the true shift may lie beyond
+      }
+      double second = 0;
+      for (int y = 0; y < result.rows; ++y) {
+        const float* row = result.ptr<float>(y);
+        for (int x = 0; x < result.cols; ++x) {
+          if (std::abs(x - best.x) <= 2 && std::abs(y - best.y) <= 2) continue;
+          second = std::max(second, static_cast<double>(row[x]));
+        }
+      }
+      if (!(best_v > 1.2 * second)) continue;
+      auto at = [&](int x, int y) { return static_cast<double>(result.at<float>(y, x)); };
+      const double dxx = at(best.x - 1, best.y) - 2 * best_v + at(best.x + 1, best.y);
+      const double dyy = at(best.x, best.y - 1) - 2 * best_v + at(best.x, best.y + 1);
+      const double sx = dxx < 0 ? 0.5 * (at(best.x - 1, best.y) - at(best.x + 1, best.y)) / dxx : 0;
+      const double sy = dyy < 0 ? 0.5 * (at(best.x, best.y - 1) - at(best.x, best.y + 1)) / dyy : 0;
+      // Block centre in canvas px, and where the map has it (level px, then map px).
+      const Eigen::Vector2d c(bx + kBlock / 2.0 - 0.5, by + kBlock / 2.0 - 0.5);
+      const Eigen::Vector2d shift(best.x - search + std::clamp(sx, -0.5, 0.5),
+                                  best.y - search + std::clamp(sy, -0.5, 0.5));
+      work_pts->push_back(Apply(work_from_canvas, c));
+      map_pts->push_back((c + Eigen::Vector2d(box.x + 0.5, box.y + 0.5) + shift) * to_map);
+    }
+  }
+}
+
+// The homography of block matches (work px -> map px), `scale` the expected map px per work px.
+features::HomographyResult FitBlockHomography(const std::vector<Eigen::Vector2d>& work_pts,
+                                              const std::vector<Eigen::Vector2d>& map_pts,
+                                              double threshold_px, int min_inliers, double scale) {
+  if (static_cast<int>(work_pts.size()) < std::max(8, min_inliers)) {
+    features::HomographyResult none;
+    none.reason = "too few block matches";
+    return none;
+  }
+  std::vector<cv::Point2f> src, dst;
+  for (size_t i = 0; i < work_pts.size(); ++i) {
+    src.emplace_back(static_cast<float>(work_pts[i].x()), static_cast<float>(work_pts[i].y()));
+    dst.emplace_back(static_cast<float>(map_pts[i].x()), static_cast<float>(map_pts[i].y()));
+  }
+  features::HomographyOptions ho;
+  ho.reprojection_threshold_px = threshold_px;
+  ho.min_inliers = min_inliers;
+  ho.min_scale = scale / 1.5;
+  ho.max_scale = scale * 1.5;
+  return features::EstimateHomography(src, dst, ho);
+}
 }  // namespace
+
+// A frame made ready for matching: undistorted, and rectified to a nadir view when roll and
+// pitch are known. Both methods work on `gray`; `work_from_frame` takes the undistorted frame's
+// pixels there, and the camera's principal point lands on the vehicle's nadir point when the
+// frame was rectified.
+struct PreparedFrame {
+  cv::Mat gray, valid;  // work image; 255 where it holds frame content
+  Eigen::Matrix3d work_from_frame = Eigen::Matrix3d::Identity();
+  Eigen::Matrix3d K = Eigen::Matrix3d::Identity();  // of the undistorted frame
+  int width = 0, height = 0;                        // of the frame
+  bool rectified = false;
+  // Work px of the vehicle's nadir point: the principal point of the (virtual, level) camera
+  // that sees the work image; the frame's principal point itself when not rectified.
+  Eigen::Vector2d nadir_work = Eigen::Vector2d::Zero();
+  std::string error;  // why the frame cannot be used ("" when it can)
+  Eigen::Vector2d Centre() const { return {(width - 1) / 2.0, (height - 1) / 2.0}; }
+  // Metres per work pixel at the nadir for a camera at `altitude_m`.
+  double Gsd(double altitude_m) const { return altitude_m / K(0, 0); }
+};
+
+namespace {}  // namespace
 
 namespace {
 
@@ -122,6 +269,16 @@ std::string LocateOptions::Check() const {
   if (top_n_per_tile < 4) return "top_n_per_tile must be >= 4";
   if (max_candidate_tiles < 1) return "max_candidate_tiles must be >= 1";
   if (!(oc_heading_step_deg > 0.1)) return "oc_heading_step_deg must be > 0.1";
+  if (oc_global_verify < 1) return "oc_global_verify must be >= 1";
+  if (oc_min_block_inliers < 4) return "oc_min_block_inliers must be >= 4";
+  if (hfov_deg != 0 && !(hfov_deg > 0 && hfov_deg < 180)) return "hfov_deg must be in (0, 180)";
+  if (camera) {
+    try {
+      camera->Validate();
+    } catch (const Error& e) {
+      return std::string("camera: ") + e.what();
+    }
+  }
   return homography.Check();
 }
 
@@ -139,6 +296,9 @@ struct Locator::Impl {
   std::unique_ptr<geo::GeoRaster> ortho;
   std::string ortho_error;
   bool ortho_tried = false;
+  // Undistortion pixel maps by frame size.
+  std::mutex undistort_mutex;
+  std::map<std::pair<int, int>, std::pair<cv::Mat, cv::Mat>> undistort_maps;
 
   // Per tile, the features in its core: the cell of points nearer to this tile's centre than
   // to any other (the whole map is covered once). Overlapping tiles detect the same map points
@@ -174,11 +334,6 @@ struct Locator::Impl {
     }
   }
 
-  double FrameGsd(const cv::Mat& gray, const Prior& prior) const {
-    const double alt = prior.altitude_m.value_or(db.options.altitude_m);
-    return 2.0 * alt * std::tan(db.options.hfov_deg * M_PI / 360.0) / gray.cols;
-  }
-
   std::vector<Eigen::Vector2d> PriorCentresPx(const Prior& prior, const Locator& self) const {
     std::vector<Eigen::Vector2d> centres;
     if (prior.position) centres.push_back(self.LatLonToPixel(*prior.position));
@@ -198,6 +353,178 @@ struct Locator::Impl {
       descriptor_tile.insert(descriptor_tile.end(), k, t.index);
     }
     if (!parts.empty()) cv::vconcat(parts, all_descriptors);
+  }
+
+  // The frame's camera: the configured one (scaled to the frame when only its size differs),
+  // else a pinhole with the configured or the map's field of view.
+  std::optional<camera::PinholeCamera> CameraFor(int w, int h, std::string* error) const {
+    if (options.camera) {
+      const camera::PinholeCamera& c = *options.camera;
+      const double k = static_cast<double>(w) / c.width;
+      if (std::abs(c.height * k - h) > 1.0) {
+        *error = fmt::format("the frame is {}x{}, the camera {}x{}: not the same aspect", w, h,
+                             c.width, c.height);
+        return std::nullopt;
+      }
+      return std::abs(k - 1.0) < 1e-12 ? c : c.Scaled(k);
+    }
+    const double hfov = options.hfov_deg > 0 ? options.hfov_deg : db.options.hfov_deg;
+    return camera::PinholeCamera::FromHorizontalFov(w, h, hfov * kDeg);
+  }
+
+  PreparedFrame Prepare(const cv::Mat& frame, const Prior& prior) {
+    PreparedFrame pf;
+    cv::Mat gray = ToGray(frame);
+    if (gray.empty()) {
+      pf.error = "empty frame";
+      return pf;
+    }
+    pf.width = gray.cols;
+    pf.height = gray.rows;
+    const auto cam = CameraFor(gray.cols, gray.rows, &pf.error);
+    if (!cam) return pf;
+    pf.K = cam->K();
+    pf.nadir_work = {pf.K(0, 2), pf.K(1, 2)};
+    if (cam->distortion != camera::DistortionModel::kNone) {
+      // Undistort to the same intrinsics without distortion (pixel maps cached per size).
+      std::lock_guard<std::mutex> lock(undistort_mutex);
+      const std::pair<int, int> key(gray.cols, gray.rows);
+      auto it = undistort_maps.find(key);
+      if (it == undistort_maps.end()) {
+        cv::Mat mx(gray.size(), CV_32F), my(gray.size(), CV_32F);
+        for (int y = 0; y < gray.rows; ++y) {
+          for (int x = 0; x < gray.cols; ++x) {
+            const Eigen::Vector2d d =
+                cam->NormalizedToPixel({(x - cam->cx) / cam->fx, (y - cam->cy) / cam->fy});
+            mx.at<float>(y, x) = static_cast<float>(d.x());
+            my.at<float>(y, x) = static_cast<float>(d.y());
+          }
+        }
+        it = undistort_maps.emplace(key, std::make_pair(mx, my)).first;
+      }
+      cv::Mat undistorted;
+      cv::remap(gray, undistorted, it->second.first, it->second.second, cv::INTER_LINEAR,
+                cv::BORDER_CONSTANT);
+      gray = undistorted;
+    }
+    const double roll = prior.roll_deg.value_or(0.0), pitch = prior.pitch_deg.value_or(0.0);
+    if (std::abs(roll) + std::abs(pitch) < 0.2) {
+      pf.gray = gray;
+      return pf;
+    }
+    // Rectify to a nadir view: the frame seen by a level camera at the same place.
+    const Eigen::Matrix3d nadir = NadirFromImage(pf.K, roll, pitch);
+    std::vector<cv::Point2f> corners;
+    for (const Eigen::Vector2d& p :
+         {Eigen::Vector2d(0, 0), Eigen::Vector2d(gray.cols, 0),
+          Eigen::Vector2d(gray.cols, gray.rows), Eigen::Vector2d(0, gray.rows)}) {
+      const Eigen::Vector3d q = nadir * p.homogeneous();
+      if (!(q.z() > 1e-9)) {
+        pf.error = "the attitude turns the camera to the horizon: the frame cannot be rectified";
+        return pf;
+      }
+      corners.emplace_back(static_cast<float>(q.x() / q.z()), static_cast<float>(q.y() / q.z()));
+    }
+    cv::Rect box = cv::boundingRect(corners);
+    // A steep view stretches far on one side; keep at most twice the frame around the nadir.
+    const cv::Rect cap(static_cast<int>(pf.K(0, 2)) - gray.cols,
+                       static_cast<int>(pf.K(1, 2)) - gray.rows, 2 * gray.cols, 2 * gray.rows);
+    box &= cap;
+    Eigen::Matrix3d shift = Eigen::Matrix3d::Identity();
+    shift(0, 2) = -box.x;
+    shift(1, 2) = -box.y;
+    pf.work_from_frame = shift * nadir;
+    pf.nadir_work -= Eigen::Vector2d(box.x, box.y);
+    const cv::Matx33d m = ToCv(pf.work_from_frame);
+    cv::warpPerspective(gray, pf.gray, m, box.size(), cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+    cv::warpPerspective(cv::Mat(gray.size(), CV_8U, cv::Scalar(255)), pf.valid, m, box.size(),
+                        cv::INTER_NEAREST, cv::BORDER_CONSTANT);
+    cv::erode(pf.valid, pf.valid, cv::Mat(), cv::Point(-1, -1), 3);
+    pf.rectified = true;
+    return pf;
+  }
+
+  // The pose and every position field of `r` from the homography work px -> map px. With
+  // correspondences (features), the camera pose is estimated from them (planar PnP, the prior's
+  // attitude and altitude as soft constraints); without (correlation), the pose is the
+  // rectification's: the given attitude, the altitude of the correlation's scale.
+  // `base_sigma_m`: the position uncertainty of the correlation. False (reason in r) when the
+  // result is unusable.
+  bool Finish(const Locator& self, const PreparedFrame& pf, const Eigen::Matrix3d& map_from_work,
+              const Prior& prior, const std::vector<Eigen::Vector2d>* work_pts,
+              const std::vector<Eigen::Vector2d>* map_pts, double base_sigma_m, LocateResult* r,
+              double unknown_attitude_sigma_deg = 20.0) {
+    const double gsd = db.map_gsd_m;
+    const Eigen::Matrix3d map_from_frame = map_from_work * pf.work_from_frame;
+    const Eigen::Vector2d pp(pf.K(0, 2), pf.K(1, 2));
+    const Eigen::Vector2d c = pf.Centre();
+    r->centre_px = Apply(map_from_frame, c);
+    if (!r->centre_px.allFinite() || r->centre_px.x() < 0 || r->centre_px.y() < 0 ||
+        r->centre_px.x() > db.width || r->centre_px.y() > db.height) {
+      r->reason = "the frame centre maps outside the map";
+      return false;
+    }
+    const cv::Matx22d j = features::HomographyJacobian(ToCv(map_from_frame), {c.x(), c.y()});
+    r->scale = std::sqrt(std::abs(j(0, 0) * j(1, 1) - j(0, 1) * j(1, 0)));
+    // The pose the rectification implies (a level camera sees the work image).
+    AerialPose assumed;
+    assumed.nadir_px = Apply(map_from_work, pf.nadir_work);
+    const Eigen::Vector2d ahead =
+        Apply(map_from_work, pf.nadir_work + Eigen::Vector2d(0, -10)) - assumed.nadir_px;
+    const cv::Matx22d jw =
+        features::HomographyJacobian(ToCv(map_from_work), {pf.nadir_work.x(), pf.nadir_work.y()});
+    const double work_scale = std::sqrt(std::abs(jw(0, 0) * jw(1, 1) - jw(0, 1) * jw(1, 0)));
+    assumed.altitude_m = work_scale * gsd * pf.K(0, 0);
+    assumed.attitude = {.roll_deg = prior.roll_deg.value_or(0.0),
+                        .pitch_deg = prior.pitch_deg.value_or(0.0),
+                        .yaw_deg = std::atan2(ahead.x(), -ahead.y()) / kDeg};
+    AerialPose pose = assumed;
+    double sigma = base_sigma_m;
+    if (work_pts && map_pts && work_pts->size() >= 6) {
+      const Eigen::Matrix3d frame_from_work = pf.work_from_frame.inverse();
+      std::vector<Eigen::Vector2d> img;
+      img.reserve(work_pts->size());
+      for (const auto& w : *work_pts) img.push_back(Apply(frame_from_work, w));
+      const auto init = PoseFromHomography(map_from_frame, pf.K, gsd);
+      // Unknown attitude: a level prior keeps a weak geometry from trading tilt for shift (weak
+      // for features, firmer for the correlation, whose search assumed a near-nadir view).
+      PosePriors priors{.roll_deg = prior.roll_deg.value_or(0.0),
+                        .pitch_deg = prior.pitch_deg.value_or(0.0),
+                        .attitude_sigma_deg = prior.roll_deg || prior.pitch_deg
+                                                  ? prior.attitude_sigma_deg
+                                                  : unknown_attitude_sigma_deg,
+                        .altitude_m = prior.altitude_m,
+                        .altitude_sigma_rel = prior.altitude_sigma_rel};
+      const bool init_ok =
+          init && std::abs(init->attitude.roll_deg) < 60 && std::abs(init->attitude.pitch_deg) < 60;
+      const PoseEstimate est =
+          RefinePose(img, *map_pts, pf.K, gsd, init_ok ? *init : assumed, priors);
+      const bool plausible = est.pose.altitude_m > 0.2 * assumed.altitude_m &&
+                             est.pose.altitude_m < 5.0 * assumed.altitude_m &&
+                             std::abs(est.pose.attitude.roll_deg) < 60 &&
+                             std::abs(est.pose.attitude.pitch_deg) < 60;
+      if (plausible) {
+        pose = est.pose;
+        sigma = std::hypot(kFeatureSigmaScale * est.horizontal_sigma_m, gsd);
+      } else {
+        sigma = std::hypot(gsd, assumed.altitude_m * std::tan(prior.attitude_sigma_deg * kDeg));
+      }
+    }
+    r->map_px = pose.nadir_px;
+    if (!r->map_px.allFinite()) {
+      r->reason = "no camera pose fits the match";
+      return false;
+    }
+    r->crs_xy = db.transform.PixelToCrs(r->map_px);
+    r->latlon = crs.ToLatLon(r->crs_xy);
+    r->centre_latlon = crs.ToLatLon(db.transform.PixelToCrs(r->centre_px));
+    const double yaw = pose.attitude.yaw_deg * kDeg;
+    r->heading_deg = self.PixelDirectionToHeading({std::sin(yaw), -std::cos(yaw)});
+    r->roll_deg = pose.attitude.roll_deg;
+    r->pitch_deg = pose.attitude.pitch_deg;
+    r->altitude_m = pose.altitude_m;
+    r->position_sigma_m = sigma;
+    return true;
   }
 
   const geo::GeoRaster* Ortho() {
@@ -245,18 +572,17 @@ Eigen::Vector2d Locator::HeadingToPixelDirection(double heading_deg) const {
 
 LocateResult Locator::Locate(const cv::Mat& frame, const Prior& prior, Order order) {
   Timer total;
-  const cv::Mat gray = ToGray(frame);
-  const bool oc_possible =
-      impl_->options.allow_orientation_correlation && prior.position && !gray.empty();
+  const PreparedFrame pf = impl_->Prepare(frame, prior);
+  // Orientation correlation also searches globally, so it backs features up with or without
+  // a prior.
+  const bool oc_possible = impl_->options.allow_orientation_correlation && pf.error.empty();
   const bool oc_first = oc_possible && order == Order::kCorrelationFirst;
-  LocateResult first =
-      oc_first ? LocateByOrientationCorrelation(gray, prior) : LocateByFeatures(gray, prior);
+  LocateResult first = oc_first ? CorrelationOn(pf, prior) : FeaturesOn(pf, prior);
   if (first.localized || (!oc_first && !oc_possible)) {
     first.times.total_ms = total.ElapsedSeconds() * 1e3;
     return first;
   }
-  LocateResult second =
-      oc_first ? LocateByFeatures(gray, prior) : LocateByOrientationCorrelation(gray, prior);
+  LocateResult second = oc_first ? FeaturesOn(pf, prior) : CorrelationOn(pf, prior);
   if (!second.localized) {
     const LocateResult& feat = oc_first ? second : first;
     const LocateResult& oc = oc_first ? first : second;
@@ -270,24 +596,33 @@ LocateResult Locator::Locate(const cv::Mat& frame, const Prior& prior, Order ord
 }
 
 LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior) {
+  Timer total;
+  const PreparedFrame pf = impl_->Prepare(frame, prior);
+  LocateResult r = FeaturesOn(pf, prior);
+  r.times.total_ms = total.ElapsedSeconds() * 1e3;
+  return r;
+}
+
+LocateResult Locator::FeaturesOn(const PreparedFrame& pf, const Prior& prior) {
   Impl& im = *impl_;
   const MapDatabase& db = im.db;
   Attempt a("features");
   LocateResult& r = a.result;
   Timer& stage = a.stage;
-  const cv::Mat gray = ToGray(frame);
-  if (gray.empty()) return a.Fail("empty frame");
+  if (!pf.error.empty()) return a.Fail(pf.error);
+  const cv::Mat& gray = pf.gray;
   // Bring the frame to the resolution the map's features were taken at.
-  const double frame_gsd = im.FrameGsd(gray, prior);
+  const double frame_gsd = pf.Gsd(prior.altitude_m.value_or(db.options.altitude_m));
   double to_feature = frame_gsd / db.feature_gsd_m;
-  cv::Mat work = gray;
+  cv::Mat work = gray, work_mask = pf.valid;
   if (prior.altitude_m && std::abs(to_feature - 1.0) > 0.15) {
     cv::resize(gray, work, cv::Size(), to_feature, to_feature,
                to_feature < 1 ? cv::INTER_AREA : cv::INTER_LINEAR);
+    if (!pf.valid.empty()) cv::resize(pf.valid, work_mask, work.size(), 0, 0, cv::INTER_NEAREST);
   } else {
     to_feature = 1.0;
   }
-  const features::Features ff = im.extractor->Extract(work);
+  const features::Features ff = im.extractor->Extract(work, work_mask);
   r.times.extraction_ms = stage.ElapsedSeconds() * 1e3;
   if (ff.size() < 8) {
     return a.Fail(
@@ -406,48 +741,71 @@ LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior)
   if (!h.ok) {
     return a.Fail(h.reason);
   }
-  const cv::Point2d c(gray.cols / 2.0, gray.rows / 2.0);
-  const cv::Point2d mc = features::ApplyHomography(h.H, c);
-  const cv::Point2d up = features::ApplyHomography(h.H, c + cv::Point2d(0, -gray.rows / 4.0));
-  r.map_px = {mc.x, mc.y};
-  if (mc.x < 0 || mc.y < 0 || mc.x > db.width || mc.y > db.height) {
-    return a.Fail("the frame centre maps outside the map");
+  std::vector<Eigen::Vector2d> work_pts, map_pts;
+  for (size_t i = 0; i < src.size(); ++i) {
+    if (i < h.inlier_mask.size() && !h.inlier_mask[i]) continue;
+    work_pts.emplace_back(src[i].x, src[i].y);
+    map_pts.emplace_back(dst[i].x, dst[i].y);
   }
-  const cv::Matx22d j = features::HomographyJacobian(h.H, c);
-  r.scale = std::sqrt(std::abs(j(0, 0) * j(1, 1) - j(0, 1) * j(1, 0)));
-  r.altitude_m =
-      r.scale * db.map_gsd_m * gray.cols / (2.0 * std::tan(db.options.hfov_deg * M_PI / 360.0));
-  r.heading_deg = PixelDirectionToHeading({up.x - mc.x, up.y - mc.y});
-  r.crs_xy = db.transform.PixelToCrs(r.map_px);
-  r.latlon = im.crs.ToLatLon(r.crs_xy);
+  if (!im.Finish(*this, pf, ToEigen(h.H), prior, &work_pts, &map_pts, 0.0, &r)) {
+    return a.Fail(r.reason);
+  }
   // Confidence grows with inliers (saturating) and their share of the matches.
   r.confidence = std::min(1.0, h.inliers / 60.0) * std::min(1.0, 0.5 + h.inlier_ratio);
   return a.Done();
 }
 
 LocateResult Locator::LocateByOrientationCorrelation(const cv::Mat& frame, const Prior& prior) {
+  Timer total;
+  const PreparedFrame pf = impl_->Prepare(frame, prior);
+  LocateResult r = CorrelationOn(pf, prior);
+  r.times.total_ms = total.ElapsedSeconds() * 1e3;
+  return r;
+}
+
+LocateResult Locator::CorrelationOn(const PreparedFrame& pf, const Prior& prior) {
   Impl& im = *impl_;
   const MapDatabase& db = im.db;
   Attempt a("orientation-correlation");
   LocateResult& r = a.result;
   Timer& stage = a.stage;
-  const cv::Mat gray = ToGray(frame);
-  if (gray.empty()) return a.Fail("empty frame");
-  if (!prior.position) {
-    return a.Fail("orientation correlation needs a prior position");
-  }
+  if (!pf.error.empty()) return a.Fail(pf.error);
+  const cv::Mat& gray = pf.gray;
   const geo::GeoRaster* ortho = im.Ortho();
   if (!ortho) {
     return a.Fail("orthophoto unavailable for orientation correlation: " + im.ortho_error);
   }
-  const Eigen::Vector2d c_px = LatLonToPixel(*prior.position);
-  if (c_px.x() < -db.width * 0.1 || c_px.y() < -db.height * 0.1 || c_px.x() > db.width * 1.1 ||
-      c_px.y() > db.height * 1.1) {
-    return a.Fail("the prior lies outside the map");
+  // Search area: around the prior's centres, or (no prior) the whole map.
+  const auto centres = im.PriorCentresPx(prior, *this);
+  const bool global = centres.empty();
+  Eigen::Vector2d c_px(db.width / 2.0, db.height / 2.0);
+  double radius_px = 0.5 * std::hypot(db.width, db.height);
+  if (!global) {
+    c_px = Eigen::Vector2d::Zero();
+    for (const auto& c : centres) c_px += c / static_cast<double>(centres.size());
+    radius_px = 0;
+    for (const auto& c : centres) radius_px = std::max(radius_px, (c - c_px).norm());
+    radius_px += prior.radius_m / db.map_gsd_m;
+    if (c_px.x() < -db.width * 0.1 || c_px.y() < -db.height * 0.1 || c_px.x() > db.width * 1.1 ||
+        c_px.y() > db.height * 1.1) {
+      return a.Fail("the prior lies outside the map");
+    }
   }
-  const double frame_gsd = im.FrameGsd(gray, prior);
-  const double frame_extent_m = std::max(gray.cols, gray.rows) * frame_gsd;
-  const double diag_m = std::hypot(gray.cols, gray.rows) * frame_gsd;
+  // Scales searched (frame gsd factors): +-25 % when the altitude is unknown, else its 1-sigma
+  // uncertainty (an altitude 10 % off still peaks at the coarse level, but less reliably on a
+  // map years older than the frame); the fine level and the blocks find the exact scale.
+  std::vector<double> scales = {1.0};
+  if (!prior.altitude_m) {
+    scales = {0.82, 1.0, 1.2};
+  } else if (prior.altitude_sigma_rel >= 0.05) {
+    const double s = std::min(0.25, prior.altitude_sigma_rel);
+    scales = {1.0 - s, 1.0, 1.0 + s};
+  }
+  const double max_scale = *std::max_element(scales.begin(), scales.end());
+  const double frame_gsd = pf.Gsd(prior.altitude_m.value_or(db.options.altitude_m));
+  const double frame_extent_m = std::max(pf.width, pf.height) * frame_gsd;
+  // The frame's valid part, as wide as the rectified view can be.
+  const double diag_m = std::hypot(gray.cols, gray.rows) * frame_gsd * max_scale;
   // Coarse level: the frame about `oc_coarse_px` across; fine level: twice that resolution
   // (never finer than the map or the frame).
   const double fine_gsd =
@@ -470,109 +828,133 @@ LocateResult Locator::LocateByOrientationCorrelation(const cv::Mat& frame, const
   };
   const Eigen::Vector2d north_px = HeadingToPixelDirection(0.0);
   const double grid_rot = std::atan2(north_px.x(), -north_px.y());  // map north vs -y
-  const cv::Mat ones(gray.size(), CV_8U, cv::Scalar(255));
+  const cv::Mat frame_valid =
+      pf.valid.empty() ? cv::Mat(gray.size(), CV_8U, cv::Scalar(255)) : pf.valid;
+  const cv::Point2d fc(gray.cols / 2.0, gray.rows / 2.0);
+  // The search finds the work image's centre; the prior is the vehicle's (nadir) position. A
+  // tilted view's centre lies ahead of (or beside) the vehicle: move the search area by that
+  // offset in the prior heading's direction, widened by what the heading and altitude leave open
+  // (the whole circle when the heading is unknown).
+  if (!global) {
+    const Eigen::Vector2d offset_w = Eigen::Vector2d(fc.x, fc.y) - pf.nadir_work;
+    const double offset_px = offset_w.norm() * frame_gsd / db.map_gsd_m;
+    if (prior.heading_deg) {
+      const double ang = *prior.heading_deg * kDeg + grid_rot;
+      const Eigen::Matrix2d rot =
+          (Eigen::Matrix2d() << std::cos(ang), -std::sin(ang), std::sin(ang), std::cos(ang))
+              .finished();
+      c_px += rot * offset_w * (frame_gsd / db.map_gsd_m);
+      radius_px += offset_px * (prior.heading_sigma_deg * kDeg + (max_scale - 1.0) + 0.05);
+    } else {
+      radius_px += offset_px * max_scale;
+    }
+  }
 
-  // Correlates the frame, rotated to each heading, with the map around `centre` (map px)
-  // within `radius_px` (map px). Returns the best peak in map pixels.
+  // Correlates the frame, rotated to each heading and scaled by each factor, with the map
+  // around `centre` (map px) within `radius_px` (map px). Returns the best peak (map pixels of
+  // the work image's centre) of each heading and scale, best first.
   auto correlate = [&](const OcLevel& lv, const std::vector<double>& headings,
-                       const Eigen::Vector2d& centre, double radius_px) {
-    OcPeak best;
+                       const std::vector<double>& factors, const Eigen::Vector2d& centre,
+                       double radius_px) {
+    std::vector<OcPeak> peaks;
     const double to_map = lv.gsd / db.map_gsd_m;
-    const double s = frame_gsd / lv.gsd;
     const int patch = static_cast<int>(std::ceil(diag_m / lv.gsd)) | 1;
     const double pc = patch / 2.0;
     const double radius_w = radius_px / to_map;
-    const int half = static_cast<int>(std::ceil(radius_w + pc)) + 2;
-    const int win = 2 * half + 1;
-    const Eigen::Vector2d cw = centre / to_map;  // centre in level px
-    const int wx = static_cast<int>(std::lround(cw.x())) - half;
-    const int wy = static_cast<int>(std::lround(cw.y())) - half;
-    const double centre_w_x = cw.x() - wx, centre_w_y = cw.y() - wy;
-    const int n = cv::getOptimalDFTSize(win);
+    // Centre in level px (level pixel i's centre is at map (i + 0.5) x to_map).
+    const Eigen::Vector2d cw = centre / to_map - Eigen::Vector2d(0.5, 0.5);
+    // Patch placements searched: top-left corners T in [t0, t0 + span] (level px), the work
+    // image's centre then at T + pc. The FFT block holds the map from t0 to t0 + span + patch,
+    // so the correlation is exact (no wrap-around) at every placement searched, and a local
+    // search costs a block little larger than the patch.
+    const int tx0 = static_cast<int>(std::floor(cw.x() - radius_w - pc));
+    const int ty0 = static_cast<int>(std::floor(cw.y() - radius_w - pc));
+    const int span_x = static_cast<int>(std::ceil(cw.x() + radius_w - pc)) - tx0;
+    const int span_y = static_cast<int>(std::ceil(cw.y() + radius_w - pc)) - ty0;
+    const int n = cv::getOptimalDFTSize(std::max(span_x, span_y) + patch + 1);
+    const cv::Rect want(tx0, ty0, span_x + patch, span_y + patch);
+    const cv::Rect src = want & cv::Rect(0, 0, lv.field.cols, lv.field.rows);
     cv::Mat padded = cv::Mat::zeros(n, n, CV_32FC2), map_spec;
-    const cv::Rect src = cv::Rect(wx, wy, win, win) & cv::Rect(0, 0, lv.field.cols, lv.field.rows);
-    if (src.area() > 0)
-      lv.field(src).copyTo(padded(cv::Rect(src.x - wx, src.y - wy, src.width, src.height)));
+    if (src.area() > 0) {
+      lv.field(src).copyTo(padded(cv::Rect(src.x - tx0, src.y - ty0, src.width, src.height)));
+    }
     cv::dft(padded, map_spec, cv::DFT_COMPLEX_OUTPUT);
     cv::Mat patch_padded(n, n, CV_32FC2), patch_spec, prod, corr;
-    const cv::Point2d fc(gray.cols / 2.0, gray.rows / 2.0);
-    for (double h : headings) {
-      const double a = h * kDeg + grid_rot;
-      const double ca = std::cos(a), sa = std::sin(a);
-      // patch (u, v) -> frame: the inverse of u = s R(a) (f - fc) + pc.
-      cv::Matx23d to_frame(ca / s, sa / s, 0, -sa / s, ca / s, 0);
-      to_frame(0, 2) = fc.x - (to_frame(0, 0) * pc + to_frame(0, 1) * pc);
-      to_frame(1, 2) = fc.y - (to_frame(1, 0) * pc + to_frame(1, 1) * pc);
-      cv::Mat warped, valid;
-      cv::warpAffine(gray, warped, to_frame, cv::Size(patch, patch),
-                     (s < 1 ? cv::INTER_AREA : cv::INTER_LINEAR) | cv::WARP_INVERSE_MAP,
-                     cv::BORDER_CONSTANT);
-      cv::warpAffine(ones, valid, to_frame, cv::Size(patch, patch),
-                     cv::INTER_NEAREST | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT);
-      cv::erode(valid, valid, cv::Mat(), cv::Point(-1, -1), 2);
-      const cv::Mat pf = OrientationField(warped, valid);
-      double weight = 0;
-      for (int y = 0; y < pf.rows; ++y) {
-        const cv::Vec2f* p = pf.ptr<cv::Vec2f>(y);
-        for (int x = 0; x < pf.cols; ++x) weight += std::hypot(p[x][0], p[x][1]);
-      }
-      if (weight < 1.0 || patch > n) continue;
-      patch_padded.setTo(0);
-      pf.copyTo(patch_padded(cv::Rect(0, 0, patch, patch)));
-      cv::dft(patch_padded, patch_spec, cv::DFT_COMPLEX_OUTPUT);
-      cv::mulSpectrums(map_spec, patch_spec, prod, 0, /*conjB=*/true);
-      cv::idft(prod, corr, cv::DFT_SCALE | cv::DFT_REAL_OUTPUT);
-      // corr(y, x): patch top-left at (x, y), frame centre at (x + pc, y + pc).
-      double best_here = -1e300, second_here = -1e300;
-      int bx = 0, by = 0;
-      const int x_lo = std::max(0, static_cast<int>(std::floor(centre_w_x - radius_w - pc)));
-      const int x_hi = std::min(n - patch, static_cast<int>(std::ceil(centre_w_x + radius_w - pc)));
-      const int y_lo = std::max(0, static_cast<int>(std::floor(centre_w_y - radius_w - pc)));
-      const int y_hi = std::min(n - patch, static_cast<int>(std::ceil(centre_w_y + radius_w - pc)));
-      const double r2 = radius_w * radius_w;
-      for (int y = y_lo; y <= y_hi; ++y) {
-        const float* row = corr.ptr<float>(y);
-        for (int x = x_lo; x <= x_hi; ++x) {
-          const double dx = x + pc - centre_w_x, dy = y + pc - centre_w_y;
-          if (dx * dx + dy * dy > r2 || row[x] <= best_here) continue;
-          best_here = row[x];
-          bx = x;
-          by = y;
+    for (double factor : factors) {
+      const double s = frame_gsd * factor / lv.gsd;
+      for (double h : headings) {
+        const double ang = h * kDeg + grid_rot;
+        const double ca = std::cos(ang), sa = std::sin(ang);
+        // patch (u, v) -> frame: the inverse of u = s R(a) (f - fc) + pc.
+        cv::Matx23d to_frame(ca / s, sa / s, 0, -sa / s, ca / s, 0);
+        to_frame(0, 2) = fc.x - (to_frame(0, 0) * pc + to_frame(0, 1) * pc);
+        to_frame(1, 2) = fc.y - (to_frame(1, 0) * pc + to_frame(1, 1) * pc);
+        cv::Mat warped, valid;
+        cv::warpAffine(gray, warped, to_frame, cv::Size(patch, patch),
+                       (s < 1 ? cv::INTER_AREA : cv::INTER_LINEAR) | cv::WARP_INVERSE_MAP,
+                       cv::BORDER_CONSTANT);
+        cv::warpAffine(frame_valid, valid, to_frame, cv::Size(patch, patch),
+                       cv::INTER_NEAREST | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT);
+        cv::erode(valid, valid, cv::Mat(), cv::Point(-1, -1), 2);
+        const cv::Mat pf_field = OrientationField(warped, valid);
+        double weight = 0;
+        for (int y = 0; y < pf_field.rows; ++y) {
+          const cv::Vec2f* p = pf_field.ptr<cv::Vec2f>(y);
+          for (int x = 0; x < pf_field.cols; ++x) weight += std::hypot(p[x][0], p[x][1]);
         }
-      }
-      if (best_here == -1e300) continue;
-      const int excl = std::max(3, patch / 8);
-      for (int y = y_lo; y <= y_hi; ++y) {
-        const float* row = corr.ptr<float>(y);
-        for (int x = x_lo; x <= x_hi; ++x) {
-          if (std::abs(x - bx) <= excl && std::abs(y - by) <= excl) continue;
-          const double dx = x + pc - centre_w_x, dy = y + pc - centre_w_y;
-          if (dx * dx + dy * dy > r2) continue;
-          second_here = std::max(second_here, static_cast<double>(row[x]));
-        }
-      }
-      const double score = best_here / weight;
-      if (score > best.score) {
+        if (weight < 1.0 || patch > n) continue;
+        patch_padded.setTo(0);
+        pf_field.copyTo(patch_padded(cv::Rect(0, 0, patch, patch)));
+        cv::dft(patch_padded, patch_spec, cv::DFT_COMPLEX_OUTPUT);
+        cv::mulSpectrums(map_spec, patch_spec, prod, 0, /*conjB=*/true);
+        cv::idft(prod, corr, cv::DFT_SCALE | cv::DFT_REAL_OUTPUT);
+        // corr(j, i): the patch's top-left corner at level px (tx0 + i, ty0 + j).
         auto at = [&](int x, int y) {
           return static_cast<double>(
-              corr.at<float>(std::clamp(y, 0, n - 1), std::clamp(x, 0, n - 1)));
+              corr.at<float>(std::clamp(y, 0, span_y), std::clamp(x, 0, span_x)));
         };
+        auto inside = [&](int x, int y) {
+          const double dx = tx0 + x + pc - cw.x(), dy = ty0 + y + pc - cw.y();
+          return dx * dx + dy * dy <= radius_w * radius_w;
+        };
+        double best_here = -1e300, second_here = -1e300;
+        int bx = 0, by = 0;
+        for (int y = 0; y <= span_y; ++y) {
+          const float* row = corr.ptr<float>(y);
+          for (int x = 0; x <= span_x; ++x) {
+            if (row[x] <= best_here || !inside(x, y)) continue;
+            best_here = row[x];
+            bx = x;
+            by = y;
+          }
+        }
+        if (best_here == -1e300) continue;
+        const int excl = std::max(3, patch / 8);
+        for (int y = 0; y <= span_y; ++y) {
+          const float* row = corr.ptr<float>(y);
+          for (int x = 0; x <= span_x; ++x) {
+            if (std::abs(x - bx) <= excl && std::abs(y - by) <= excl) continue;
+            if (row[x] <= second_here || !inside(x, y)) continue;
+            second_here = row[x];
+          }
+        }
         const double c0 = at(bx, by);
         const double dxx = at(bx - 1, by) - 2 * c0 + at(bx + 1, by);
         const double dyy = at(bx, by - 1) - 2 * c0 + at(bx, by + 1);
-        const double ox = dxx < 0 ? 0.5 * (at(bx - 1, by) - at(bx + 1, by)) / dxx : 0.0;
-        const double oy = dyy < 0 ? 0.5 * (at(bx, by - 1) - at(bx, by + 1)) / dyy : 0.0;
-        const double px = wx + bx + std::clamp(ox, -0.5, 0.5) + pc;
-        const double py = wy + by + std::clamp(oy, -0.5, 0.5) + pc;
-        best = {score, px * to_map, py * to_map, h,
-                second_here > -1e300 ? second_here / weight : 0};
+        const double sx = dxx < 0 ? 0.5 * (at(bx - 1, by) - at(bx + 1, by)) / dxx : 0.0;
+        const double sy = dyy < 0 ? 0.5 * (at(bx, by - 1) - at(bx, by + 1)) / dyy : 0.0;
+        const double px = tx0 + bx + std::clamp(sx, -0.5, 0.5) + pc;
+        const double py = ty0 + by + std::clamp(sy, -0.5, 0.5) + pc;
+        peaks.push_back({best_here / weight, (px + 0.5) * to_map, (py + 0.5) * to_map, h,
+                         second_here > -1e300 ? second_here / weight : 0, factor});
       }
     }
-    return best;
+    std::sort(peaks.begin(), peaks.end(),
+              [](const OcPeak& x, const OcPeak& y) { return x.score > y.score; });
+    return peaks;
   };
 
   const OcLevel& coarse = level(coarse_gsd);
-  const OcLevel& fine = level(fine_gsd);
   r.times.extraction_ms = stage.ElapsedSeconds() * 1e3;
   stage.Restart();
   std::vector<double> headings;
@@ -585,27 +967,124 @@ LocateResult Locator::LocateByOrientationCorrelation(const cv::Mat& frame, const
   } else {
     for (double h = 0; h < 360.0 - 1e-9; h += step) headings.push_back(h);
   }
-  const OcPeak c = correlate(coarse, headings, c_px, prior.radius_m / db.map_gsd_m);
-  if (c.score <= 0) {
+  const std::vector<OcPeak> coarse_peaks = correlate(coarse, headings, scales, c_px, radius_px);
+  if (coarse_peaks.empty() || coarse_peaks[0].score <= 0) {
     return a.Fail("no gradient structure to correlate (textureless frame or map)");
   }
-  // Refine at twice the resolution around the coarse peak and heading.
-  const OcPeak f = correlate(fine, {c.heading}, {c.x, c.y}, 2.5 * coarse_gsd / db.map_gsd_m);
-  const OcPeak& best = f.score > 0 ? f : c;
-  r.times.matching_ms = stage.ElapsedSeconds() * 1e3;
-  // Distinctiveness from the coarse search, which saw the whole prior area.
-  const double peak_ratio = c.second > 0 ? c.score / c.second : 10.0;
-  r.confidence = std::clamp(peak_ratio - 1.0, 0.0, 1.0);
-  r.map_px = {best.x, best.y};
-  r.heading_deg = std::fmod(best.heading + 720.0, 360.0);
-  r.scale = frame_gsd / db.map_gsd_m;
-  r.altitude_m = prior.altitude_m.value_or(db.options.altitude_m);
-  if (peak_ratio < im.options.oc_min_peak_ratio) {
-    return a.Fail(fmt::format("correlation peak not distinctive (ratio {:.2f} < {:.2f})",
-                              peak_ratio, im.options.oc_min_peak_ratio));
+  // Verification and refinement. Each candidate place (the best coarse peak; globally the best
+  // few distinct ones, since a map-wide search meets look-alikes) is refined by block matching:
+  // the frame, warped by the peak's similarity, is cut into blocks, each correlated with the map
+  // around its predicted place. Consistent block shifts (a homography) carry what a similarity
+  // cannot (the tilt left by an attitude error, perspective, the exact scale), so the camera
+  // pose comes from the image as with features; their number verifies the place.
+  const double exclusion_px = 0.25 * diag_m / db.map_gsd_m;
+  std::vector<OcPeak> places;
+  for (const OcPeak& p : coarse_peaks) {
+    bool distinct = true;
+    for (const OcPeak& q : places)
+      distinct = distinct && std::hypot(p.x - q.x, p.y - q.y) > exclusion_px;
+    if (distinct) places.push_back(p);
+    if (static_cast<int>(places.size()) >= im.options.oc_global_verify) break;
   }
-  r.crs_xy = db.transform.PixelToCrs(r.map_px);
-  r.latlon = im.crs.ToLatLon(r.crs_xy);
+  // The similarity work px -> map px of a peak: map = centre + k R(a) (w - fc).
+  auto similarity = [&](const OcPeak& p) {
+    const double ang = p.heading * kDeg + grid_rot;
+    const double k = frame_gsd * p.scale / db.map_gsd_m;
+    Eigen::Matrix3d m;
+    m << k * std::cos(ang), -k * std::sin(ang), 0, k * std::sin(ang), k * std::cos(ang), 0, 0, 0, 1;
+    m.block<2, 1>(0, 2) =
+        Eigen::Vector2d(p.x, p.y) - m.block<2, 2>(0, 0) * Eigen::Vector2d(fc.x, fc.y);
+    return m;
+  };
+  const double block_gsd = std::max(db.map_gsd_m, fine_gsd / 2);
+  const OcLevel& block_level = level(block_gsd);
+  const OcLevel& fine_level = level(fine_gsd);
+  struct Candidate {
+    OcPeak peak;  // refined at the fine level
+    Eigen::Matrix3d map_from_work;
+    std::vector<Eigen::Vector2d> work_pts, map_pts;  // inliers
+    features::HomographyResult h;
+  };
+  std::vector<Candidate> candidates;
+  for (const OcPeak& p : places) {
+    Candidate c;
+    // Two passes: wide shifts on the fine level from the peak's similarity, then small ones at
+    // the blocks' resolution from the homography of the first.
+    std::vector<Eigen::Vector2d> work_pts, map_pts;
+    // The peak refined at the fine level over heading and scale first (the coarse search takes
+    // one scale when the altitude is known to ~10 %).
+    const std::vector<OcPeak> f = correlate(
+        fine_level, {p.heading - step / 3, p.heading, p.heading + step / 3},
+        {p.scale * 0.95, p.scale, p.scale * 1.05}, {p.x, p.y}, 1.5 * coarse_gsd / db.map_gsd_m);
+    c.peak = !f.empty() && f[0].score > 0 ? f[0] : p;
+    Eigen::Matrix3d predicted = similarity(c.peak);
+    const double k = frame_gsd * p.scale / db.map_gsd_m;
+    BlockMatches(fine_level, gray, frame_valid, predicted, fine_gsd / db.map_gsd_m, 5, 24,
+                 &work_pts, &map_pts);
+    const features::HomographyResult h1 =
+        FitBlockHomography(work_pts, map_pts, 1.2 * fine_gsd / db.map_gsd_m, 6, k);
+    if (h1.ok) predicted = ToEigen(h1.H);
+    work_pts.clear();
+    map_pts.clear();
+    BlockMatches(block_level, gray, frame_valid, predicted, block_gsd / db.map_gsd_m, 3, 24,
+                 &work_pts, &map_pts);
+    c.h = FitBlockHomography(work_pts, map_pts, 1.0 * block_gsd / db.map_gsd_m, 8, k);
+    if (c.h.ok) {
+      for (size_t i = 0; i < work_pts.size(); ++i) {
+        if (!c.h.inlier_mask[i]) continue;
+        c.work_pts.push_back(work_pts[i]);
+        c.map_pts.push_back(map_pts[i]);
+      }
+      c.map_from_work = ToEigen(c.h.H);
+    }
+    const bool strong = c.work_pts.size() >= 2u * im.options.oc_min_block_inliers;
+    candidates.push_back(std::move(c));
+    // With a prior the best peak is usually right: the next places are verified only when the
+    // blocks do not confirm it clearly (globally every place is, to compare them).
+    if (!global && strong) break;
+  }
+  r.times.matching_ms = stage.ElapsedSeconds() * 1e3;
+  stage.Restart();
+  size_t bi = 0;
+  for (size_t i = 1; i < candidates.size(); ++i)
+    if (candidates[i].work_pts.size() > candidates[bi].work_pts.size()) bi = i;
+  const Candidate& best = candidates[bi];
+  size_t runner_up = 0;
+  for (size_t i = 0; i < candidates.size(); ++i)
+    if (i != bi) runner_up = std::max(runner_up, candidates[i].work_pts.size());
+  const OcPeak& c0 = coarse_peaks[0];
+  const double peak_ratio = c0.second > 0 ? c0.score / c0.second : 10.0;
+  const size_t verified = best.work_pts.size();
+  r.inliers = static_cast<int>(verified);
+  r.inlier_ratio = best.h.inlier_ratio;
+  // Distinct: the coarse peak stands out, or the blocks confirm one place far better than any
+  // other candidate (globally the coarse peaks of look-alike places are close in score).
+  const bool confirmed =
+      verified >= static_cast<size_t>(im.options.oc_min_block_inliers) && verified >= 2 * runner_up;
+  r.confidence =
+      std::clamp(std::max(peak_ratio - 1.0,
+                          confirmed ? verified / (2.0 * im.options.oc_min_block_inliers) : 0),
+                 0.0, 1.0);
+  if (!confirmed &&
+      (global || im.options.oc_require_blocks || peak_ratio < im.options.oc_min_peak_ratio)) {
+    r.times.estimation_ms = stage.ElapsedSeconds() * 1e3;
+    return a.Fail(fmt::format(
+        "correlation peak not distinctive (ratio {:.2f} < {:.2f}, {} block matches, next place {})",
+        peak_ratio, im.options.oc_min_peak_ratio, verified, runner_up));
+  }
+  // Position error without the blocks: the coarse level's resolution, and the attitude's error
+  // over the altitude (the nadir comes from the given roll/pitch; level assumed when none given).
+  const double alt = prior.altitude_m.value_or(db.options.altitude_m);
+  const double att_sigma = prior.roll_deg || prior.pitch_deg ? prior.attitude_sigma_deg : 5.0;
+  const double sigma =
+      std::hypot(kCorrelationSigmaScale * coarse_gsd, alt * std::tan(att_sigma * kDeg));
+  const bool ok = confirmed
+                      ? im.Finish(*this, pf, best.map_from_work, prior, &best.work_pts,
+                                  &best.map_pts, sigma, &r, /*unknown_attitude_sigma_deg=*/3.0)
+                      : im.Finish(*this, pf, similarity(candidates[0].peak), prior, nullptr,
+                                  nullptr, sigma, &r);
+  r.times.estimation_ms = stage.ElapsedSeconds() * 1e3;
+  if (!ok) return a.Fail(r.reason);
   return a.Done();
 }
 

@@ -8,10 +8,18 @@
 //    prior or, without one, from a global vote against a sample of every tile's descriptors.
 //  - orientation correlation (for appearance change, e.g. a map years older than the flight):
 //    dense correlation of doubled-angle gradient orientations between the frame, rotated over the
-//    heading uncertainty, and the map around the prior, by FFT. Needs a prior and reads the
-//    orthophoto itself (path stored in the database, or given).
+//    heading uncertainty, and the map around the prior, by FFT. Reads the orthophoto itself (path
+//    stored in the database, or given). Without a prior it searches the whole map, coarse to
+//    fine, over headings and scales.
 //
-// Headings are degrees clockwise from north of the frame's up direction (image -y).
+// Frames from a real camera: roll/pitch (attitude convention in aerial_camera.h) rectify the
+// frame to a nadir view first; the features method then recovers the full camera pose from the
+// map-to-image homography (planar PnP, the given attitude and altitude as priors). The result's
+// position is the vehicle's (the camera's nadir point); the image centre's ground point is
+// reported separately.
+//
+// Headings are degrees clockwise from north of the frame's up direction (image -y), which with
+// the attitude convention is the vehicle's yaw.
 #pragma once
 
 #include <memory>
@@ -21,9 +29,12 @@
 
 #include <opencv2/core.hpp>
 
+#include "optinav/camera/camera.h"
 #include "optinav/maploc/map_db.h"
 
 namespace optinav::maploc {
+
+struct PreparedFrame;  // a frame undistorted and rectified for matching (locator.cc)
 
 struct Prior {
   std::optional<geo::LatLon> position;  // approximate position
@@ -35,6 +46,11 @@ struct Prior {
   std::optional<double> heading_deg;  // frame up direction, clockwise from north
   double heading_sigma_deg = 10.0;    // half-width of the heading search
   std::optional<double> altitude_m;   // approximate altitude above ground
+  double altitude_sigma_rel = 0.1;    // its 1-sigma error, fraction
+  // Camera attitude from the autopilot (aerial_camera.h convention), degrees; unknown: nadir
+  // assumed for the search, estimated by the features method.
+  std::optional<double> roll_deg, pitch_deg;
+  double attitude_sigma_deg = 1.5;  // 1-sigma error of roll and pitch
 };
 
 struct LocateOptions {
@@ -50,11 +66,23 @@ struct LocateOptions {
   double oc_heading_step_deg = 3.0;  // heading step of the coarse correlation search
   int oc_coarse_px = 64;             // frame size across at the coarse correlation level
   double oc_min_peak_ratio = 1.15;   // best peak / best peak elsewhere
-  int frame_features = 1024;         // features taken from the frame
+  // Distinct places verified by block matching: all of them globally, with a prior the next
+  // ones only while the best is not clearly confirmed.
+  int oc_global_verify = 4;
+  int oc_min_block_inliers = 12;  // consistent block matches that confirm a place
+  // Without a confirmation by the blocks, a distinct correlation peak with a prior is still a
+  // fix (a similarity, less exact) unless this is set.
+  bool oc_require_blocks = false;
+  int frame_features = 1024;  // features taken from the frame
   // ORB pyramid levels for the frame (x1.2 each). The map tiles carry 8 levels, so 4 on the
   // frame still covers the altitude changes tested (+-30 %), at ~40 % less extraction time.
   int frame_orb_levels = 4;
   std::string ortho_path;  // overrides the database's orthophoto path (for OC)
+  // The camera: hfov_deg (> 0) with the principal point at the frame centre for any frame size,
+  // or `camera` (intrinsics and distortion; a frame of another size with the same aspect scales
+  // it). Neither: the map's build field of view.
+  double hfov_deg = 0;
+  std::optional<camera::PinholeCamera> camera;
   std::string Check() const;
 };
 
@@ -64,14 +92,21 @@ struct StageTimes {
 
 struct LocateResult {
   bool localized = false;
-  std::string reason;                                // why not (or "ok")
-  std::string method;                                // "features" | "orientation-correlation" | ""
-  Eigen::Vector2d map_px = Eigen::Vector2d::Zero();  // frame centre in map pixels
+  std::string reason;  // why not (or "ok")
+  std::string method;  // "features" | "orientation-correlation" | ""
+  // The vehicle's position (the camera's nadir point).
+  Eigen::Vector2d map_px = Eigen::Vector2d::Zero();  // map pixels
   Eigen::Vector2d crs_xy = Eigen::Vector2d::Zero();  // in the map CRS
   geo::LatLon latlon;
-  double heading_deg = 0;  // frame up direction, clockwise from north
-  double scale = 0;        // map pixels per frame pixel at the centre
-  double altitude_m = 0;   // implied by the scale and the build's camera (0 if unknown)
+  // The ground point under the frame centre.
+  Eigen::Vector2d centre_px = Eigen::Vector2d::Zero();
+  geo::LatLon centre_latlon;
+  double heading_deg = 0;              // yaw: frame up direction, clockwise from north
+  double roll_deg = 0, pitch_deg = 0;  // estimated (features) or the inputs (correlation)
+  double scale = 0;                    // map pixels per frame pixel at the centre
+  double altitude_m = 0;               // estimated height above the map plane
+  // 1-sigma horizontal uncertainty of the position, metres (calibrated: docs/MAPDB.md).
+  double position_sigma_m = 0;
   int inliers = 0;
   double inlier_ratio = 0;
   double confidence = 0;  // [0, 1]
@@ -103,6 +138,8 @@ class Locator {
   Eigen::Vector2d HeadingToPixelDirection(double heading_deg) const;
 
  private:
+  LocateResult FeaturesOn(const PreparedFrame& frame, const Prior& prior);
+  LocateResult CorrelationOn(const PreparedFrame& frame, const Prior& prior);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

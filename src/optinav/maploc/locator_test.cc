@@ -69,7 +69,7 @@ TEST_F(Aero1Map, SimulatedFramesWithRotationScaleAndTilt) {
     const LocateResult r = locator.Locate(frame, prior);
     if (!r.localized) continue;
     ++localized;
-    const double err_m = (r.map_px - s.centre_px).norm() * 0.25;
+    const double err_m = (r.centre_px - s.centre_px).norm() * 0.25;
     errors.push_back(err_m);
     good += err_m < 1.0;
   }
@@ -132,13 +132,7 @@ class NaipMap : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = new std::filesystem::path(testing::MakeTempDir("naip"));
-    MapBuildOptions o;
-    o.frame_width = 256;
-    o.frame_height = 256;
-    o.hfov_deg = 90;
-    o.altitude_m = 640;  // footprint 1280 m = 256 px at 5 m
-    db_ = new MapDatabase(
-        BuildMapDatabase(testmaps::Naip("20090818"), o, (*dir_ / "naip2009.db").string()));
+    db_ = new MapDatabase(testmaps::BuildNaip2009Map(*dir_));
   }
   static void TearDownTestSuite() {
     delete db_;

@@ -6,6 +6,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "optinav/geo/raster.h"
+#include "optinav/maploc/map_db.h"
 #include "optinav/util/testing.h"
 
 namespace optinav::maploc::testmaps {
@@ -22,6 +23,17 @@ inline std::string Aero1GeoTiff(const std::filesystem::path& dir) {
 
 inline std::string Naip(const std::string& year) {
   return (testing::SharedDataDir() / "geo" / "naip" / ("naip_" + year + ".tif")).string();
+}
+
+// The NAIP 2009 map of the tests: built for a 256x256 camera with a 90 deg field of view at
+// 640 m (footprint 1280 m = 256 px at the tile's 5 m).
+inline MapDatabase BuildNaip2009Map(const std::filesystem::path& dir) {
+  MapBuildOptions o;
+  o.frame_width = 256;
+  o.frame_height = 256;
+  o.hfov_deg = 90;
+  o.altitude_m = 640;
+  return BuildMapDatabase(Naip("20090818"), o, (dir / "naip2009.db").string());
 }
 
 }  // namespace optinav::maploc::testmaps

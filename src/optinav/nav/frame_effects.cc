@@ -8,6 +8,7 @@
 
 #include "optinav/camera/camera.h"
 #include "optinav/geometry/lie.h"
+#include "optinav/maploc/aerial_camera.h"
 
 namespace optinav::nav {
 
@@ -90,26 +91,22 @@ void ApplyPhotometricEffects(cv::Mat& gray, const FrameEffectOptions& o, double 
 FrameHook MakeWeatherHook(sim::WeatherSpec spec, uint64_t seed) {
   if (spec.IsClear()) return {};
   return [spec, seed](cv::Mat& gray, const FrameView& v) {
-    constexpr double kDeg = M_PI / 180.0;
     camera::PinholeCamera cam;
     cam.width = v.width;
     cam.height = v.height;
     cam.fx = cam.fy = v.focal_px;
     cam.cx = 0.5 * v.width - 0.5;
     cam.cy = 0.5 * v.height - 0.5;
-    // Nadir camera in ENU (z up): optical axis down, image up = the heading; then the tilt about
-    // an axis in the image plane (as maploc::SynthesizeFrame tilts it).
-    const double h = v.heading_deg * kDeg;
-    Eigen::Matrix3d nadir;
-    nadir.col(0) = Eigen::Vector3d(std::cos(h), -std::sin(h), 0);   // image right
-    nadir.col(1) = Eigen::Vector3d(-std::sin(h), -std::cos(h), 0);  // image down
-    nadir.col(2) = Eigen::Vector3d(0, 0, -1);                       // optical axis
-    const double ta = v.tilt_azimuth_deg * kDeg;
-    const Eigen::Matrix3d tilt =
-        Eigen::AngleAxisd(v.tilt_deg * kDeg, Eigen::Vector3d(std::cos(ta), std::sin(ta), 0))
-            .toRotationMatrix();
+    // The mapping camera of a vehicle with this attitude, in ENU (z up).
+    Eigen::Matrix3d enu_from_ned;
+    enu_from_ned << 0, 1, 0, 1, 0, 0, 0, 0, -1;
+    const Eigen::Matrix3d enu_from_cam =
+        enu_from_ned *
+        maploc::NedFromBody(
+            {.roll_deg = v.roll_deg, .pitch_deg = v.pitch_deg, .yaw_deg = v.heading_deg}) *
+        maploc::BodyFromCamera();
     Rigid3d world_from_cam;
-    world_from_cam.rotation = Eigen::Quaterniond(nadir * tilt);
+    world_from_cam.rotation = Eigen::Quaterniond(enu_from_cam);
     world_from_cam.translation = v.position_enu;
     // The ray (xn, yn, 1) reaches the ground at depth altitude / down, where down, the ray's
     // downward world component, is linear in xn and yn: -(R.row(2) . ray).

@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 
 #include "optinav/geo/geo.h"
+#include "optinav/maploc/aerial_camera.h"
 #include "optinav/maploc/frame_synth.h"
 #include "optinav/util/timer.h"
 
@@ -37,6 +38,8 @@ struct Mission::Impl {
       : db(d), frames(f), locator(d, lo), map_crs(d.crs_wkt), frames_crs(f.crs_wkt()) {
     const double hfov = db.options.hfov_deg * kDeg;
     focal = 0.5 * db.options.frame_width / std::tan(0.5 * hfov);
+    camera = camera::PinholeCamera::FromHorizontalFov(db.options.frame_width,
+                                                      db.options.frame_height, hfov);
     const Eigen::Vector2d mid =
         frames.transform().PixelToCrs(Eigen::Vector2d(0.5 * frames.width(), 0.5 * frames.height()));
     frames_gsd = frames.transform().UnitsPerPixel() * frames_crs.MetresPerUnit(mid);
@@ -57,6 +60,7 @@ struct Mission::Impl {
   maploc::Locator locator;
   geo::CrsTransform map_crs, frames_crs;
   double focal = 0, frames_gsd = 0;
+  camera::PinholeCamera camera;  // the map's camera (principal point at the frame centre)
 };
 
 Mission::Mission(const maploc::MapDatabase& db, const geo::GeoRaster& frames,
@@ -118,6 +122,12 @@ std::string Mission::Check(const MissionOptions& o) const {
   if (!(o.compass_bias_deg >= 0 && o.compass_bias_deg <= 45)) {
     return "compass bias must be in [0, 45] deg";
   }
+  if (!(o.attitude_noise_deg >= 0 && o.attitude_noise_deg <= 10)) {
+    return fmt::format("attitude noise must be in [0, 10] deg, got {}", o.attitude_noise_deg);
+  }
+  if (!(o.max_bank_deg >= 0 && o.max_bank_deg <= 30)) {
+    return fmt::format("max bank must be in [0, 30] deg, got {}", o.max_bank_deg);
+  }
   if (!(o.wind_m_s >= 0 && o.wind_m_s < o.speed_m_s)) {
     return fmt::format("wind must be in [0, speed) m/s, got {}", o.wind_m_s);
   }
@@ -142,7 +152,11 @@ MissionResult Mission::Run(const MissionOptions& o) {
   const double fix_sigma_feat = o.feature_fix_sigma_m > 0 ? o.feature_fix_sigma_m : 1.5 * map_gsd;
   const double fix_sigma_oc = o.oc_fix_sigma_m > 0 ? o.oc_fix_sigma_m : 3.0 * map_gsd;
   const int fw = im.db.options.frame_width, fh = im.db.options.frame_height;
-  const Eigen::Vector2d frame_centre(0.5 * fw, 0.5 * fh);
+  const Eigen::Matrix3d K = im.camera.K();
+  const Eigen::Vector2d principal(im.camera.cx, im.camera.cy);
+  // The tilt a frame may have: every corner ray at least 10 deg above the horizon.
+  const double corner_deg = std::atan(std::hypot(0.5 * fw, 0.5 * fh) / im.camera.fx) / kDeg;
+  const double max_total_tilt_deg = std::max(0.0, 80.0 - corner_deg);
 
   std::mt19937_64 rng(o.seed);
   std::uniform_real_distribution<double> u01(0, 1);
@@ -151,6 +165,7 @@ MissionResult Mission::Run(const MissionOptions& o) {
   const double wind_dir = 360 * u01(rng);
   const AltitudeProfile altitude_profile(o.effects.altitude_variation, rng());
   std::mt19937_64 effects_rng(rng());
+  std::mt19937_64 attitude_rng(rng());
 
   const geo::LocalEnu enu(o.start, 0.0);
   auto to_enu = [&](const geo::LatLon& ll) -> Eigen::Vector2d {
@@ -179,6 +194,13 @@ MissionResult Mission::Run(const MissionOptions& o) {
   int feature_failures = 0;  // consecutive frames the feature method did not localize
   Eigen::Vector2d last_command_step = Eigen::Vector2d::Zero();  // commanded ENU displacement
   FrameOdometry odometry;
+  // The attitude error of what locate and the odometry are given (Gauss-Markov per axis).
+  constexpr double kAttitudeCorrelation = 0.95;
+  Eigen::Vector2d attitude_error =
+      o.attitude_noise_deg * Eigen::Vector2d(n01(attitude_rng), n01(attitude_rng));
+  double flight_heading = WrapDeg(command + compass_bias), previous_flight_heading = flight_heading;
+  double flight_dt = o.step_s;
+  Eigen::Matrix3d previous_nadir_from_image = Eigen::Matrix3d::Identity();
   std::vector<Eigen::Vector2d> rejected_innovations;  // consecutive rejected fixes
   double t = 0;
 
@@ -196,29 +218,48 @@ MissionResult Mission::Run(const MissionOptions& o) {
     const double alt = altitude * altitude_profile.Factor(t);
     log.altitude_m = alt;
     const double camera_heading = truth_heading + o.effects.yaw_jitter_deg * n01(effects_rng);
-    maploc::FrameSpec spec;
-    spec.width = fw;
-    spec.height = fh;
-    spec.centre_px = im.FramesPixel(truth);
-    spec.heading_deg = im.HeadingInFrames(truth, camera_heading);
-    spec.gsd_m = alt / im.focal;
-    spec.focal_px = im.focal;
-    spec.tilt_deg = o.effects.max_tilt_deg * u01(effects_rng);
-    spec.tilt_azimuth_deg = 360 * u01(effects_rng);
-    cv::Mat frame = maploc::SynthesizeFrame(im.frames, im.frames_gsd, spec);
+    // The attitude: the bank of the coordinated turn flown since the last frame, plus gusts.
+    const double turn_rate = std::remainder(flight_heading - previous_flight_heading, 360.0) *
+                             kDeg / std::max(flight_dt, 1e-3);
+    const double bank = std::clamp(std::atan(o.speed_m_s * turn_rate / 9.81) / kDeg,
+                                   -o.max_bank_deg, o.max_bank_deg);
+    const double gust = o.effects.max_tilt_deg * u01(effects_rng);
+    const double gust_dir = 2 * M_PI * u01(effects_rng);
+    double roll = bank + gust * std::sin(gust_dir), pitch = gust * std::cos(gust_dir);
+    if (const double total = std::hypot(roll, pitch); total > max_total_tilt_deg) {
+      roll *= max_total_tilt_deg / total;  // keep the horizon out of the frame
+      pitch *= max_total_tilt_deg / total;
+    }
+    log.roll_deg = roll;
+    log.pitch_deg = pitch;
+    const maploc::AerialPose pose{
+        .nadir_px = im.FramesPixel(truth),
+        .altitude_m = alt,
+        .attitude = {.roll_deg = roll,
+                     .pitch_deg = pitch,
+                     .yaw_deg = WrapDeg(im.HeadingInFrames(truth, camera_heading))}};
+    cv::Mat frame = maploc::RenderAerialFrame(im.frames, im.frames_gsd, pose, im.camera);
     ApplyPhotometricEffects(frame, o.effects, 0.0, effects_rng);
     if (o.weather) {
       FrameView view;
       view.t_ns = static_cast<int64_t>(std::llround(t * 1e9));
       view.position_enu << to_enu(truth), alt;
       view.heading_deg = WrapDeg(camera_heading);
-      view.tilt_deg = spec.tilt_deg;
-      view.tilt_azimuth_deg = spec.tilt_azimuth_deg;
+      view.roll_deg = roll;
+      view.pitch_deg = pitch;
       view.focal_px = im.focal;
       view.width = fw;
       view.height = fh;
       o.weather(frame, view);
     }
+    // What the autopilot reports: the attitude with its slowly varying error.
+    if (step > 0) {
+      const double c = kAttitudeCorrelation, w = o.attitude_noise_deg * std::sqrt(1 - c * c);
+      attitude_error =
+          c * attitude_error + w * Eigen::Vector2d(n01(attitude_rng), n01(attitude_rng));
+    }
+    const double given_roll = roll + attitude_error.x(), given_pitch = pitch + attitude_error.y();
+    const Eigen::Matrix3d nadir_from_image = maploc::NadirFromImage(K, given_roll, given_pitch);
     log.times.synthesis_ms = synth.ElapsedMs();
     if (o.keep_frames) res.frames.push_back(frame.clone());
 
@@ -233,8 +274,18 @@ MissionResult Mission::Run(const MissionOptions& o) {
         double sigma;
         bool odometry_used = false;
         if (os.ok) {
+          // Both frames rectified to level (the given attitudes): the motion of the principal
+          // point is then the vehicle's, whatever the frames' roll and pitch.
+          Eigen::Matrix3d prev_from_cur;
+          for (int r = 0; r < 3; ++r)
+            for (int c = 0; c < 3; ++c) prev_from_cur(r, c) = os.prev_from_cur(r, c);
+          const Eigen::Matrix3d level =
+              previous_nadir_from_image * prev_from_cur * nadir_from_image.inverse();
+          cv::Matx33d level_cv;
+          for (int r = 0; r < 3; ++r)
+            for (int c = 0; c < 3; ++c) level_cv(r, c) = level(r, c) / level(2, 2);
           const LocalSimilarity s =
-              SimilarityAt(os.prev_from_cur, cv::Point2d(frame_centre.x(), frame_centre.y()));
+              SimilarityAt(level_cv, cv::Point2d(principal.x(), principal.y()));
           const Eigen::Vector2d d_px =
               scale * RotateFrameToMap(theta, {s.translation_px.x, s.translation_px.y});
           const Eigen::Vector2d here_px = locator.LatLonToPixel(from_enu(x));
@@ -248,7 +299,10 @@ MissionResult Mission::Run(const MissionOptions& o) {
           if (odometry_used) {
             theta += s.rotation_rad;
             scale *= s.scale;
-            sigma = o.odometry_sigma * dx.norm() + 1.0;
+            // Plus the change of the attitude error between the frames (its ground shift).
+            sigma = o.odometry_sigma * dx.norm() + 1.0 +
+                    alt * std::tan(o.attitude_noise_deg * kDeg) *
+                        std::sqrt(2 * (1 - kAttitudeCorrelation));
           } else {
             log.odometry_ok = false;
           }
@@ -263,6 +317,8 @@ MissionResult Mission::Run(const MissionOptions& o) {
       }
     }
 
+    previous_nadir_from_image = nadir_from_image;
+
     // 3. The map fix, with a prior from the prediction.
     maploc::Prior prior;
     const double pos_sigma = std::sqrt(P.eigenvalues().real().maxCoeff());
@@ -271,6 +327,9 @@ MissionResult Mission::Run(const MissionOptions& o) {
     prior.heading_deg = locator.PixelDirectionToHeading(RotateFrameToMap(theta, {0, -1}));
     prior.heading_sigma_deg = failures > 3 ? 20.0 : 10.0;
     prior.altitude_m = altitude;
+    prior.roll_deg = given_roll;
+    prior.pitch_deg = given_pitch;
+    prior.attitude_sigma_deg = std::max(0.25, o.attitude_noise_deg);
     if (!o.use_odometry) {
       // The thesis's prediction (SEEDS.md part 3): the reachable distance along the bearing to the
       // target (and deviated bearings) from the last fix.
@@ -356,7 +415,12 @@ MissionResult Mission::Run(const MissionOptions& o) {
       }
       if (log.fix_accepted) {
         theta = PixelAngle(locator.HeadingToPixelDirection(r.heading_deg));
-        if (r.scale > 0) scale = r.scale;
+        // The odometry works on level-rectified frames: their scale is the altitude's.
+        if (r.altitude_m > 0) {
+          scale = r.altitude_m / im.focal / map_gsd;
+        } else if (r.scale > 0) {
+          scale = r.scale;
+        }
         last_fix = from_enu(x);
         last_fix_t = t;
         failures = 0;
@@ -387,7 +451,10 @@ MissionResult Mission::Run(const MissionOptions& o) {
     const double dist = std::min(o.speed_m_s * o.step_s, to_target.distance_m);
     const double dt = dist / o.speed_m_s;
     const geo::LatLon before = truth;
-    truth = geo::GeodesicDirect(truth, WrapDeg(command + compass_bias), dist);
+    previous_flight_heading = flight_heading;
+    flight_heading = WrapDeg(command + compass_bias);
+    flight_dt = dt;
+    truth = geo::GeodesicDirect(truth, flight_heading, dist);
     if (o.wind_m_s > 0) truth = geo::GeodesicDirect(truth, wind_dir, o.wind_m_s * dt);
     res.flown_m += geo::GeodesicInverse(before, truth).distance_m;
     last_command_step = dist * Eigen::Vector2d(std::sin(command * kDeg), std::cos(command * kDeg));

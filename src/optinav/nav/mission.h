@@ -1,6 +1,7 @@
 // A GNSS-denied mission over an orthophoto (the loop of the orthophoto-navigation thesis, SEEDS.md
 // part 3, plus odometry and fix gating): the drone knows its start and the target; every step it
-// takes a camera frame (synthesised from an orthophoto at its true pose), localizes it against the
+// takes a camera frame (a true perspective view of an orthophoto from its true position, altitude
+// and attitude: banking in turns, gusts), localizes it against the
 // map database, blends the fix with frame-to-frame odometry in a small Kalman filter, and turns
 // towards the target.
 //
@@ -35,6 +36,12 @@ struct MissionOptions {
   double compass_bias_deg = 3;   // heading hold error of the autopilot, uniform +- this per run
   double wind_m_s = 0;           // constant wind (seeded direction) pushing the true drone
   FrameEffectOptions effects;
+  // Error of the roll and pitch given to locate (the autopilot's attitude), 1-sigma degrees per
+  // axis: a slowly varying error (first-order Gauss-Markov, correlation 0.95 per frame). 0.5 deg
+  // is about the acceptance set's +-1 deg uniform (sigma 0.58); at 640 m each 0.1 deg moves a
+  // fix that takes the attitude as given (orientation correlation) by 1.1 m.
+  double attitude_noise_deg = 0.5;
+  double max_bank_deg = 20;            // bank of a coordinated turn, limited to this
   FrameHook weather;                   // optional, applied after the photometric effects
   bool use_odometry = true;            // false: the thesis loop (fix or keep the last bearing)
   double feature_fix_sigma_m = 0;      // 0: 1.5 map pixels
@@ -60,10 +67,11 @@ struct StepLog {
   geo::LatLon truth, estimate;
   double truth_heading_deg = 0, command_heading_deg = 0;
   double altitude_m = 0;
-  bool fix_found = false;     // the locator returned a position
-  bool fix_accepted = false;  // and the filter took it
-  std::string fix_method;     // features | orientation-correlation
-  std::string fix_reason;     // locator's reason, or why the filter rejected the fix
+  double roll_deg = 0, pitch_deg = 0;  // the true attitude of the frame
+  bool fix_found = false;              // the locator returned a position
+  bool fix_accepted = false;           // and the filter took it
+  std::string fix_method;              // features | orientation-correlation
+  std::string fix_reason;              // locator's reason, or why the filter rejected the fix
   geo::LatLon fix;
   double fix_error_m = -1;      // fix vs truth (when found)
   double estimate_error_m = 0;  // filter vs truth after the step

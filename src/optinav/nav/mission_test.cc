@@ -136,8 +136,44 @@ TEST_F(NaipMission, BadMissionsAreRefusedBeforeTheyStart) {
   b.speed_m_s = 140;
   b.step_s = 5;
   expect(b, "would not overlap");
+  b = o;
+  b.attitude_noise_deg = 20;
+  expect(b, "attitude noise must be in [0, 10] deg");
   EXPECT_ERROR(RandomStartTarget(*db_, 50000, 300, 1), {},
                "no start/target pair 50000 m apart fits inside the map with a 300 m margin");
+}
+
+// The frames are taken with the flight's attitude: banked in turns, gusts within --tilt.
+TEST_F(NaipMission, FramesCarryTheFlightsAttitude) {
+  const geo::GeoRaster raster = geo::GeoRaster::Open(maploc::testmaps::Naip("20090818"));
+  Mission mission(*db_, raster);
+  const auto [start, target] = RandomStartTarget(*db_, 2000, 300, 3);
+  MissionOptions o;
+  o.start = start;
+  o.target = target;
+  o.speed_m_s = 40;
+  o.step_s = 2;
+  o.seed = 3;
+  o.effects.max_tilt_deg = 0;
+  const MissionResult level = mission.Run(o);
+  double max_roll = 0, max_pitch = 0;
+  for (const StepLog& s : level.steps) {
+    max_roll = std::max(max_roll, std::abs(s.roll_deg));
+    max_pitch = std::max(max_pitch, std::abs(s.pitch_deg));
+  }
+  std::printf("no gusts: max |roll| %.2f deg (banks in turns), max |pitch| %.2f deg\n", max_roll,
+              max_pitch);
+  EXPECT_TRUE(level.reached);
+  EXPECT_EQ(max_pitch, 0.0);
+  EXPECT_GT(max_roll, 0.1);   // the heading corrections are flown as banked turns
+  EXPECT_LE(max_roll, 20.0);  // max_bank_deg
+  o.effects.max_tilt_deg = 5;
+  const MissionResult gusty = mission.Run(o);
+  max_pitch = 0;
+  for (const StepLog& s : gusty.steps) max_pitch = std::max(max_pitch, std::abs(s.pitch_deg));
+  EXPECT_TRUE(gusty.reached);
+  EXPECT_GT(max_pitch, 2.5);
+  EXPECT_LE(max_pitch, 5.0);
 }
 
 struct Experiment {

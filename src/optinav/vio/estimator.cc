@@ -79,6 +79,13 @@ VioOptions LoadVioOptions(const std::string& path) {
         {"ransac_px", &f.ransac_px},
         {"epipolar_px", &f.epipolar_px},
         {"border_px", &f.border_px},
+        {"min_corner_response", &f.min_corner_response},
+        {"clahe_clip_limit", &f.clahe_clip_limit},
+        {"clahe_tiles", &f.clahe_tiles},
+        {"clahe_below_std", &f.clahe_below_std},
+        {"highpass_sigma_px", &f.highpass_sigma_px},
+        {"median_filter_px", &f.median_filter_px},
+        {"corner_block_px", &f.corner_block_px},
         {"keyframe_max_interval_s", &f.keyframe_max_interval_s},
         {"keyframe_min_tracked_ratio", &f.keyframe_min_tracked_ratio},
         {"keyframe_min_parallax_px", &f.keyframe_min_parallax_px},
@@ -637,6 +644,16 @@ std::optional<FrameEstimate> VioEstimator::RunBackend(FramePacket packet) {
       if (features.keyframe) timing_.Add("backend_keyframe", s);
     }
     PostFeedback(/*with_rejected_tracks=*/true);
+    if (spdlog::should_log(spdlog::level::trace)) {
+      const FrontendStats& fs = features.stats;
+      const BackendStats& bs = backend_.stats();
+      spdlog::trace(
+          "vio frame {:.3f}: kf {} tracked {} fb {} ransac {} detected {} stereo {} flow {:.1f} "
+          "constrained {} landmarks {} outliers {}",
+          t_ns * 1e-9, features.keyframe ? 1 : 0, fs.tracked, fs.rejected_fb, fs.rejected_ransac,
+          fs.detected, fs.stereo, fs.median_flow_px, bs.newest_constrained_landmarks,
+          bs.num_landmarks, bs.num_outliers_removed);
+    }
     // Divergence.
     const bool use_imu = options_.mode == VioMode::kStereoImu;
     const bool finite = estimate.world_from_body.translation.allFinite() &&

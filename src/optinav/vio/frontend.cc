@@ -21,6 +21,21 @@ cv::Point2f ToCv(const Eigen::Vector2d& p) {
 
 }  // namespace
 
+double IntensityStd(const cv::Mat& grey) {
+  OPTINAV_CHECK(grey.type() == CV_8UC1);
+  cv::Scalar mean, std;
+  cv::meanStdDev(grey, mean, std);
+  return std[0];
+}
+
+cv::Mat HighPassFilter(const cv::Mat& grey, double sigma_px) {
+  OPTINAV_CHECK(grey.type() == CV_8UC1 && sigma_px > 0);
+  cv::Mat blurred, out;
+  cv::GaussianBlur(grey, blurred, cv::Size(0, 0), sigma_px, sigma_px, cv::BORDER_REPLICATE);
+  cv::addWeighted(grey, 1.0, blurred, -1.0, 128.0, out);
+  return out;
+}
+
 std::string FrontendOptions::Check() const {
   if (max_features < 8) return "max_features must be >= 8";
   if (grid_cols < 1 || grid_rows < 1) return "grid_cols and grid_rows must be >= 1";
@@ -34,6 +49,15 @@ std::string FrontendOptions::Check() const {
   if (!(ransac_px > 0)) return "ransac_px must be > 0";
   if (!(epipolar_px > 0)) return "epipolar_px must be > 0";
   if (border_px < 0) return "border_px must be >= 0";
+  if (!(min_corner_response >= 0)) return "min_corner_response must be >= 0";
+  if (!(clahe_clip_limit >= 0)) return "clahe_clip_limit must be >= 0";
+  if (!(clahe_below_std >= 0)) return "clahe_below_std must be >= 0";
+  if (!(highpass_sigma_px >= 0)) return "highpass_sigma_px must be >= 0";
+  if (median_filter_px < 0 || median_filter_px > 7 ||
+      (median_filter_px > 1 && median_filter_px % 2 == 0))
+    return "median_filter_px must be 0, 1, 3, 5 or 7";
+  if (corner_block_px < 3 || corner_block_px > 15) return "corner_block_px must be 3..15";
+  if (clahe_tiles < 1 || clahe_tiles > 64) return "clahe_tiles must be 1..64";
   if (!(keyframe_max_interval_s > 0)) return "keyframe_max_interval_s must be > 0";
   if (!(keyframe_min_tracked_ratio >= 0 && keyframe_min_tracked_ratio <= 1))
     return "keyframe_min_tracked_ratio must be in [0, 1]";
@@ -75,6 +99,13 @@ void StereoFrontend::Detect(const cv::Mat& image, std::vector<Track>* tracks) {
   mask.rowRange(std::max(0, mask.rows - b), mask.rows).setTo(0);
   mask.colRange(0, std::min(b, mask.cols)).setTo(0);
   mask.colRange(std::max(0, mask.cols - b), mask.cols).setTo(0);
+  if (options_.min_corner_response > 0) {
+    // Pixels below the absolute floor take no corner (same response as goodFeaturesToTrack's).
+    cv::Mat response, strong;
+    cv::cornerMinEigenVal(image, response, options_.corner_block_px, 3);
+    cv::compare(response, options_.min_corner_response, strong, cv::CMP_GE);
+    mask &= strong;
+  }
   for (const Track& t : *tracks) {
     const int cx = std::clamp(static_cast<int>(t.pixel.x) / std::max(cell_w, 1), 0, cols - 1);
     const int cy = std::clamp(static_cast<int>(t.pixel.y) / std::max(cell_h, 1), 0, rows - 1);
@@ -90,7 +121,7 @@ void StereoFrontend::Detect(const cv::Mat& image, std::vector<Track>* tracks) {
       const cv::Rect cell(cx * cell_w, cy * cell_h, cell_w, cell_h);
       corners.clear();
       cv::goodFeaturesToTrack(image(cell), corners, want, options_.quality_level,
-                              options_.min_distance_px, mask(cell), 3);
+                              options_.min_distance_px, mask(cell), options_.corner_block_px);
       for (const cv::Point2f& c : corners) {
         const cv::Point2f p(c.x + cell.x, c.y + cell.y);
         tracks->push_back({next_id_++, p, std::nullopt, 0});
@@ -214,10 +245,42 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
     if (timing_) timing_->Add(name, stage.ElapsedSeconds());
     stage.Restart();
   };
+  cv::Mat left_eq, right_eq;
+  if (options_.clahe_clip_limit > 0) {
+    if (options_.clahe_below_std <= 0) {
+      clahe_on_ = true;
+    } else {
+      const double std = IntensityStd(left);
+      if (std < options_.clahe_below_std) clahe_on_ = true;
+      if (std > 1.25 * options_.clahe_below_std) clahe_on_ = false;
+    }
+  }
+  if (clahe_on_) {
+    if (!clahe_)
+      clahe_ = cv::createCLAHE(options_.clahe_clip_limit,
+                               cv::Size(options_.clahe_tiles, options_.clahe_tiles));
+    clahe_->apply(left, left_eq);
+    clahe_->apply(right, right_eq);
+  } else {
+    left_eq = left;
+    right_eq = right;
+  }
+  if (options_.median_filter_px > 1) {
+    cv::Mat l, r;
+    cv::medianBlur(left_eq, l, options_.median_filter_px);
+    cv::medianBlur(right_eq, r, options_.median_filter_px);
+    left_eq = l;
+    right_eq = r;
+  }
+  if (options_.highpass_sigma_px > 0) {
+    left_eq = HighPassFilter(left_eq, options_.highpass_sigma_px);
+    right_eq = HighPassFilter(right_eq, options_.highpass_sigma_px);
+  }
   std::vector<cv::Mat> left_pyramid, right_pyramid;
   const int pad = std::max(options_.klt_window_px, options_.stereo_window_px);
-  cv::buildOpticalFlowPyramid(left, left_pyramid, cv::Size(pad, pad), options_.klt_pyramid_levels);
-  cv::buildOpticalFlowPyramid(right, right_pyramid, cv::Size(pad, pad),
+  cv::buildOpticalFlowPyramid(left_eq, left_pyramid, cv::Size(pad, pad),
+                              options_.klt_pyramid_levels);
+  cv::buildOpticalFlowPyramid(right_eq, right_pyramid, cv::Size(pad, pad),
                               options_.klt_pyramid_levels);
   lap("frontend.pyramid");
 
@@ -294,7 +357,7 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
 
   // 3. New corners where the grid is thin.
   const size_t before = tracks.size();
-  Detect(left, &tracks);
+  Detect(left_eq, &tracks);
   out.stats.detected = static_cast<int>(tracks.size() - before);
   lap("frontend.detect");
 

@@ -361,6 +361,13 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(file.frontend.klt_max_iterations, d.frontend.klt_max_iterations);
   EXPECT_EQ(file.frontend.keyframe_min_parallax_px, d.frontend.keyframe_min_parallax_px);
   EXPECT_EQ(file.frontend.keyframe_min_tracked_ratio, d.frontend.keyframe_min_tracked_ratio);
+  EXPECT_EQ(file.frontend.clahe_clip_limit, d.frontend.clahe_clip_limit);
+  EXPECT_EQ(file.frontend.clahe_tiles, d.frontend.clahe_tiles);
+  EXPECT_EQ(file.frontend.clahe_below_std, d.frontend.clahe_below_std);
+  EXPECT_EQ(file.frontend.min_corner_response, d.frontend.min_corner_response);
+  EXPECT_EQ(file.frontend.highpass_sigma_px, d.frontend.highpass_sigma_px);
+  EXPECT_EQ(file.frontend.median_filter_px, d.frontend.median_filter_px);
+  EXPECT_EQ(file.frontend.corner_block_px, d.frontend.corner_block_px);
   EXPECT_EQ(file.backend.window_keyframes, d.backend.window_keyframes);
   EXPECT_EQ(file.backend.max_iterations, d.backend.max_iterations);
   EXPECT_EQ(file.backend.huber_pixels, d.backend.huber_pixels);

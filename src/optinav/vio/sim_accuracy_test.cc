@@ -9,6 +9,7 @@
 #include "optinav/eval/metrics.h"
 #include "optinav/io/trajectory_io.h"
 #include "optinav/sim/simulation.h"
+#include "optinav/sim/weather.h"
 #include "optinav/util/testing.h"
 #include "optinav/vio/pipeline.h"
 
@@ -136,6 +137,35 @@ TEST(SimAccuracy, CarStereoOnly) {
   // On this segment the mean error was 1.01 m before the stereo-only keyframe thresholds and
   // outlier threshold (every frame a keyframe, 4 px outliers), 0.35 m after.
   EXPECT_LT(a.ape_mean_m, 1.5 * limit) << "regression guard (1.5 x the scaled ORB-SLAM3 figure)";
+}
+
+TEST(SimAccuracy, CarStereoOnlyInDust) {
+  // 100 % dust on the urban car route (the weather document's worst urban condition): the
+  // texture left is a grey level or two deep and, without contrast normalisation, KLT loses most
+  // tracks every frame (every frame a keyframe) and the odometry pitches away. First 10 s.
+  sim::SimulationOptions o;
+  o.route = "car";
+  o.duration_s = 10.0;
+  o.seed = 3;
+  o.scale = 0.5;
+  o.weather = sim::ParseWeather("dust:100");
+  o.out_dir = (optinav::testing::MakeTempDir("vio_sim_dust") / "seq").string();
+  sim::RunSimulation(o);
+  VioRunOptions options;
+  options.vio.mode = VioMode::kStereo;
+  const Accuracy a = Evaluate(o.out_dir, RunVioOnEuroc(o.out_dir, options), /*se3=*/false);
+  VioRunOptions old = options;
+  old.vio.frontend.clahe_clip_limit = 0;  // the frontend before 2026-11-25
+  const Accuracy b = Evaluate(o.out_dir, RunVioOnEuroc(o.out_dir, old), /*se3=*/false);
+  std::printf(
+      "simulated car, urban, dust 100 %%, stereo-only, 400x300, %.1f m: mean APE (first poses "
+      "aligned) %.3f m with low-contrast CLAHE (< 1 m), %.3f m without (> 1 m)\n",
+      a.path_m, a.ape_mean_m, b.ape_mean_m);
+  EXPECT_EQ(a.lost, 0u);
+  // Measured 2026-11-25: 0.348 m with, 2.422 m without (52 m of path). The full 762 m route in
+  // dust stays far from the clear figure (docs/VIO.md, weather): a guard, not the acceptance.
+  EXPECT_LT(a.ape_mean_m, 1.0);
+  EXPECT_GT(b.ape_mean_m, 1.0) << "the old frontend is expected to fail here";
 }
 
 }  // namespace

@@ -24,6 +24,7 @@
 #include <vector>
 
 #include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "optinav/camera/camera.h"
 #include "optinav/util/timer.h"
@@ -45,6 +46,35 @@ struct FrontendOptions {
   double ransac_px = 1.0;            // fundamental-matrix RANSAC threshold
   double epipolar_px = 2.0;          // stereo match distance to the epipolar line
   int border_px = 10;                // features closer to the border are dropped
+  // Absolute floor of the Shi-Tomasi corner response (the smaller eigenvalue of the 3x3
+  // structure tensor, OpenCV's cornerMinEigenVal scale: intensities in [0, 1]); 0: none. The
+  // quality level is relative to a cell's best corner, so in fog or dust a cell holding only
+  // faint, haze-blurred texture still yields corners. Off: on the foggy car route any floor
+  // made the drift worse (fewer features; docs/VIO.md, weather).
+  double min_corner_response = 0.0;
+  // Contrast-limited adaptive histogram equalisation of both images before detection and
+  // tracking (clip limit; 0: off) over a clahe_tiles x clahe_tiles grid. In 100 % dust the
+  // texture is a grey level or two deep and KLT loses most tracks every frame (every frame a
+  // keyframe); CLAHE halves the drift there (docs/VIO.md, weather).
+  double clahe_clip_limit = 2.0;
+  int clahe_tiles = 8;
+  // CLAHE only on low-contrast frames: when the left image's intensity standard deviation (grey
+  // levels) is below this (0: every frame). Off again above 1.25 x this (hysteresis, so that
+  // the tracked images do not flip between the two looks from one frame to the next). The car
+  // route at 400x300: clear 38-43, fog 100 % 32-37, dust 100 % 12-15; on fog CLAHE did not help,
+  // so clear and foggy frames stay untouched (bit-identical results).
+  double clahe_below_std = 20.0;
+  // High-pass filter of both images before detection and tracking: image - Gaussian blur of
+  // sigma highpass_sigma_px + 128 (0: off). Removes slow intensity ramps such as the haze
+  // gradient of fog and dust, which changes under a feature as it approaches. Off: it made the
+  // foggy car route worse (sigma 3 and 6 px).
+  double highpass_sigma_px = 0.0;
+  // Median filter of both images before detection and tracking (odd kernel side; 0 or 1: off).
+  // Removes particles of a pixel or two (dust, distant snow and rain) that would otherwise be
+  // the strongest corners of a hazy image. Off: on 100 % dust 3 px helped less than CLAHE and
+  // 5 px made it worse.
+  int median_filter_px = 0;
+  int corner_block_px = 3;  // Shi-Tomasi block size (larger: less sensitive to tiny dots)
   double keyframe_max_interval_s = 0.5;
   double keyframe_min_tracked_ratio = 0.75;
   double keyframe_min_parallax_px = 15.0;
@@ -57,6 +87,12 @@ struct FrontendOptions {
 
   std::string Check() const;
 };
+
+// Standard deviation of the intensities of `grey` (CV_8UC1), grey levels.
+double IntensityStd(const cv::Mat& grey);
+
+// `grey` (CV_8UC1) minus its Gaussian blur of `sigma_px`, plus 128 (saturated to 8 bits).
+cv::Mat HighPassFilter(const cv::Mat& grey, double sigma_px);
 
 struct FrontendStats {
   int tracked = 0, rejected_fb = 0, rejected_ransac = 0, detected = 0, stereo = 0;
@@ -114,6 +150,8 @@ class StereoFrontend {
   // Gyro rotation accumulated since the last keyframe (parallax is measured without it).
   Eigen::Quaterniond cur_from_keyframe_ = Eigen::Quaterniond::Identity();
   bool has_rotation_since_keyframe_ = false;
+  cv::Ptr<cv::CLAHE> clahe_;       // when clahe_clip_limit > 0
+  bool clahe_on_ = false;          // the low-contrast state (clahe_below_std)
   TimingStats* timing_ = nullptr;  // median depth of the last stereo matches
 };
 
