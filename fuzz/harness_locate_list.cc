@@ -21,9 +21,8 @@ OPTINAV_FUZZ_TARGET(locate_list) {
   try {
     run->LocateList(path, [&](const nlohmann::json& j) {
       ++rows;
-      // As `map locate --images-from` prints it. OPEN (docs/RELIABILITY.md): with the default
-      // strict handler a row whose image name is not UTF-8 throws nlohmann's type_error 316
-      // here, which ends the whole list (exit 1); replaced bytes until map_locate is fixed.
+      // As `map locate --images-from` prints it: image names that are not UTF-8 (found by this
+      // harness: the strict handler threw and ended the whole list) print with U+FFFD.
       (void)j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
     });
   } catch (const Error&) {

@@ -139,6 +139,13 @@ printf 'image,prior_lat,prior_lon,radius_m,heading_deg,heading_sigma_deg\n%s,,,,
 expect_ok "locate list" "$BIN" map locate --map "$WORK/naip.db" --images-from "$WORK/list.csv"
 [[ $(wc -l < "$WORK/out.txt") -eq 2 ]] || fail "locate list: expected 2 JSON lines"
 grep -q 'missing.png' "$WORK/out.txt" || fail "locate list lacks the missing image's line"
+# A file name that is not UTF-8 (Latin-1 bytes; found by fuzz/harness_locate_list) prints with
+# U+FFFD instead of ending the list.
+printf 'image,prior_lat,prior_lon,radius_m,heading_deg,heading_sigma_deg\n%s\n%s,,,,,\n' \
+  "$WORK/caf$(printf '\xe9').png,,,,," "$WORK/missing.png" > "$WORK/list_latin1.csv"
+expect_ok "locate list with a Latin-1 name" "$BIN" map locate --map "$WORK/naip.db" \
+  --images-from "$WORK/list_latin1.csv"
+[[ $(wc -l < "$WORK/out.txt") -eq 2 ]] || fail "locate list latin-1: expected 2 JSON lines"
 
 # --- Simulator (issue 4): tiny images and short durations keep this fast.
 expect_ok "sim drone euroc with weather and gnss options" "$BIN" sim --world urban --route drone \

@@ -125,12 +125,16 @@ int RunLocate(LocateFlags f) {
     const maploc::LocateResult r = run.LocateImage(f.image);
     nlohmann::json j = app::LocateResultJson(r);
     j["image"] = f.image;
-    std::fputs(f.json ? (j.dump(2) + "\n").c_str() : app::LocateResultText(r).c_str(), stdout);
+    // File names are bytes, not necessarily UTF-8: invalid sequences print as U+FFFD.
+    const std::string text =
+        f.json ? j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n"
+               : app::LocateResultText(r);
+    std::fputs(text.c_str(), stdout);
     return 0;
   }
   // Many frames in one process: one JSON object per line, flushed as each frame is done.
   run.LocateList(f.list, [](const nlohmann::json& j) {
-    std::printf("%s\n", j.dump().c_str());
+    std::printf("%s\n", j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace).c_str());
     std::fflush(stdout);
   });
   return 0;

@@ -50,12 +50,14 @@ cv::Mat SynthesizeFrame(const geo::GeoRaster& raster, double map_gsd_m, const Fr
   const int ow = std::max(1, static_cast<int>(win.width / down));
   const int oh = std::max(1, static_cast<int>(win.height / down));
   const cv::Mat img = raster.ReadGray(win.x, win.y, win.width, win.height, ow, oh);
-  // frame px -> window-image px
-  const cv::Matx33d to_img = cv::Matx33d(ow / static_cast<double>(win.width), 0,
-                                         -win.x * ow / static_cast<double>(win.width), 0,
-                                         oh / static_cast<double>(win.height),
-                                         -win.y * oh / static_cast<double>(win.height), 0, 0, 1) *
-                             f2m;
+  // frame px -> window-image px. Map px as GDAL has them (pixel i covers [i, i + 1)): the
+  // window image's pixel k has its centre half a pixel on, so its index is 0.5 less.
+  const cv::Matx33d to_img =
+      cv::Matx33d(ow / static_cast<double>(win.width), 0,
+                  -win.x * ow / static_cast<double>(win.width) - 0.5, 0,
+                  oh / static_cast<double>(win.height),
+                  -win.y * oh / static_cast<double>(win.height) - 0.5, 0, 0, 1) *
+      f2m;
   cv::Mat out;
   cv::warpPerspective(img, out, to_img, cv::Size(s.width, s.height),
                       cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT);

@@ -128,18 +128,8 @@ TEST_F(Aero1Map, BadFramesAreNotLocalizedWithAReason) {
 }
 
 // The map is older than the flight: NAIP 2009 map, frames from 2012 and 2017.
-class NaipMap : public ::testing::Test {
+class NaipMap : public testmaps::Naip2009MapTest {
  protected:
-  static void SetUpTestSuite() {
-    dir_ = new std::filesystem::path(testing::MakeTempDir("naip"));
-    db_ = new MapDatabase(testmaps::BuildNaip2009Map(*dir_));
-  }
-  static void TearDownTestSuite() {
-    delete db_;
-    std::filesystem::remove_all(*dir_);
-    delete dir_;
-  }
-
   struct Outcome {
     int frames = 0, good = 0;
     std::vector<double> errors;
@@ -185,11 +175,7 @@ class NaipMap : public ::testing::Test {
     }
     return out;
   }
-  static std::filesystem::path* dir_;
-  static MapDatabase* db_;
 };
-std::filesystem::path* NaipMap::dir_ = nullptr;
-MapDatabase* NaipMap::db_ = nullptr;
 
 TEST_F(NaipMap, FramesFromLaterYearsWithHeading) {
   for (const char* year : {"20120731", "20170827"}) {

@@ -354,9 +354,12 @@ MapDatabase BuildMapDatabase(const std::string& ortho_path, const MapBuildOption
         const features::Features f = extractor->Extract(img, valid);
         const double to_map = static_cast<double>(side) / tile_img;
         t.keypoints.reserve(f.size());
+        // Map pixels as GDAL has them (pixel i covers [i, i + 1)): the centre of tile-image
+        // pixel k, where the detector's integer coordinate lies, is at (k + 0.5) x to_map.
+        // (Databases built before 2026-11-25 hold the index, half a pixel off.)
         for (const auto& kp : f.keypoints) {
-          t.keypoints.emplace_back(static_cast<float>(x + kp.pt.x * to_map),
-                                   static_cast<float>(y + kp.pt.y * to_map));
+          t.keypoints.emplace_back(static_cast<float>(x + (kp.pt.x + 0.5) * to_map),
+                                   static_cast<float>(y + (kp.pt.y + 0.5) * to_map));
           t.keypoint_size.push_back(static_cast<float>(kp.size * to_map));
           t.keypoint_angle.push_back(kp.angle);
         }
@@ -436,6 +439,11 @@ MapDatabase LoadMapDatabase(const std::string& path) {
     m.cols = std::stoi(get("cols"));
     m.options = OptionsFromJson(nlohmann::json::parse(get("build_options")));
     m.feature_type = m.options.feature_type;
+    // The locator divides by these and turns positions into grid cells with them (fuzz).
+    for (const double v : {m.map_gsd_m, m.feature_gsd_m, m.tile_px, m.step_px}) {
+      if (!(v > 0) || !std::isfinite(v))
+        throw std::invalid_argument(fmt::format("bad scale value {} (gsd, tile or step)", v));
+    }
     if (m.rows <= 0 || m.cols <= 0 || int64_t{m.rows} * m.cols > 10'000'000)
       throw std::invalid_argument(fmt::format("bad tile grid {} x {}", m.cols, m.rows));
   } catch (const Error&) {
@@ -520,6 +528,13 @@ MapDatabase LoadMapDatabase(const std::string& path) {
     std::vector<float> f(static_cast<size_t>(n) * 4);
     if (kp_bytes > 0) std::memcpy(f.data(), kp, kp_bytes);  // blobs need not be float-aligned
     for (int64_t i = 0; i < n; ++i) {
+      // A keypoint must be finite: the locator turns positions into grid cells (an infinite one
+      // is undefined behaviour there; found by fuzz/map_db_rows with the checksums recomputed).
+      if (!std::isfinite(f[4 * i]) || !std::isfinite(f[4 * i + 1]) ||
+          !std::isfinite(f[4 * i + 2]) || !std::isfinite(f[4 * i + 3])) {
+        throw Error(fmt::format("tile {} has a non-finite keypoint ({})", position, i),
+                    {.file = path, .field = "keypoints"});
+      }
       t.keypoints.emplace_back(f[4 * i], f[4 * i + 1]);
       t.keypoint_size.push_back(f[4 * i + 2]);
       t.keypoint_angle.push_back(f[4 * i + 3]);

@@ -16,18 +16,8 @@
 namespace optinav::maploc {
 namespace {
 
-class PerspectiveFrames : public ::testing::Test {
+class PerspectiveFrames : public testmaps::Naip2009MapTest {
  protected:
-  static void SetUpTestSuite() {
-    dir_ = new std::filesystem::path(testing::MakeTempDir("naip_perspective"));
-    db_ = new MapDatabase(testmaps::BuildNaip2009Map(*dir_));
-  }
-  static void TearDownTestSuite() {
-    delete db_;
-    std::filesystem::remove_all(*dir_);
-    delete dir_;
-  }
-
   struct Outcome {
     int frames = 0, good = 0, within_2sigma = 0, localized = 0;
     std::vector<double> errors, altitude_errors;
@@ -66,8 +56,7 @@ class PerspectiveFrames : public ::testing::Test {
         o.errors.push_back(err);
         o.good += err <= 25.0;
         o.within_2sigma += err <= 2 * r.position_sigma_m;
-        o.altitude_errors.push_back(std::abs(r.altitude_m - f.pose.altitude_m) /
-                                    f.pose.altitude_m);
+        o.altitude_errors.push_back(std::abs(r.altitude_m - f.pose.altitude_m) / f.pose.altitude_m);
       }
     }
     std::printf(
@@ -84,12 +73,7 @@ class PerspectiveFrames : public ::testing::Test {
     EXPECT_LE(Median(o.altitude_errors), 0.05);
     EXPECT_GE(o.within_2sigma, 0.9 * o.localized);
   }
-
-  static std::filesystem::path* dir_;
-  static MapDatabase* db_;
 };
-std::filesystem::path* PerspectiveFrames::dir_ = nullptr;
-MapDatabase* PerspectiveFrames::db_ = nullptr;
 
 TEST_F(PerspectiveFrames, WithPriorAndHeading) {
   // The target is 95 %; measured 47/50 (94 %) here: two frames whose block matching

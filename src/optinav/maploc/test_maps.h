@@ -3,6 +3,7 @@
 
 #include <string>
 
+#include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 
 #include "optinav/geo/raster.h"
@@ -35,5 +36,21 @@ inline MapDatabase BuildNaip2009Map(const std::filesystem::path& dir) {
   o.altitude_m = 640;
   return BuildMapDatabase(Naip("20090818"), o, (dir / "naip2009.db").string());
 }
+
+// A test suite sharing one NAIP 2009 map (built once per suite, in a temporary folder).
+class Naip2009MapTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new std::filesystem::path(testing::MakeTempDir("naip2009"));
+    db_ = new MapDatabase(BuildNaip2009Map(*dir_));
+  }
+  static void TearDownTestSuite() {
+    delete db_;
+    std::filesystem::remove_all(*dir_);
+    delete dir_;
+  }
+  inline static std::filesystem::path* dir_ = nullptr;
+  inline static MapDatabase* db_ = nullptr;
+};
 
 }  // namespace optinav::maploc::testmaps
