@@ -13,8 +13,9 @@
 //    fine, over headings and scales.
 //
 // Frames from a real camera: roll/pitch (attitude convention in aerial_camera.h) rectify the
-// frame to a nadir view first; the features method then recovers the full camera pose from the
-// map-to-image homography (planar PnP, the given attitude and altitude as priors). The result's
+// frame to a nadir view first; the full camera pose then comes from the map-to-image homography
+// of the features or of the correlation's block matches (planar PnP, the given attitude and
+// altitude as priors). The result's
 // position is the vehicle's (the camera's nadir point); the image centre's ground point is
 // reported separately.
 //
@@ -101,10 +102,12 @@ struct LocateResult {
   // The ground point under the frame centre.
   Eigen::Vector2d centre_px = Eigen::Vector2d::Zero();
   geo::LatLon centre_latlon;
-  double heading_deg = 0;              // yaw: frame up direction, clockwise from north
-  double roll_deg = 0, pitch_deg = 0;  // estimated (features) or the inputs (correlation)
-  double scale = 0;                    // map pixels per frame pixel at the centre
-  double altitude_m = 0;               // estimated height above the map plane
+  double heading_deg = 0;  // yaw: frame up direction, clockwise from north
+  // Estimated from the image when a homography was found (features, or the correlation's
+  // confirming blocks); else the inputs.
+  double roll_deg = 0, pitch_deg = 0;
+  double scale = 0;       // map pixels per frame pixel at the centre
+  double altitude_m = 0;  // estimated height above the map plane
   // 1-sigma horizontal uncertainty of the position, metres (calibrated: docs/MAPDB.md).
   double position_sigma_m = 0;
   int inliers = 0;
