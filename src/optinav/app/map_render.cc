@@ -7,6 +7,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "optinav/geo/raster.h"
+#include "optinav/geometry/angles.h"
 #include "optinav/io/text_parse.h"
 #include "optinav/maploc/aerial_camera.h"
 
@@ -16,11 +17,6 @@ namespace {
 
 constexpr double kDeg = M_PI / 180.0;
 constexpr double kDefaultHfovDeg = 90.0;
-
-double WrapDeg360(double a) {
-  a = std::fmod(a, 360.0);
-  return a < 0 ? a + 360.0 : a;
-}
 
 // The legacy model: a frame centred on `at` with the tilt of maploc::SynthesizeFrame.
 RenderedFrame RenderLegacyTilt(const FrameRenderOptions& o, const geo::GeoRaster& raster,
@@ -79,8 +75,7 @@ RenderedFrame RenderFrame(const FrameRenderOptions& o) {
     return crs.ToLatLon(raster.transform().PixelToCrs(px));
   };
   // The yaw of the pose is relative to the raster's up direction.
-  const double up_bearing =
-      geo::GeodesicInverse(o.at, latlon(at_px + Eigen::Vector2d(0, -20))).azimuth1_deg;
+  const double up_bearing = maploc::RasterUpBearingDeg(raster, at_px);
   maploc::AerialPose pose{.nadir_px = at_px,
                           .altitude_m = altitude,
                           .attitude = {.roll_deg = o.roll_deg,

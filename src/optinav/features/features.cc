@@ -232,6 +232,11 @@ cv::Matx22d HomographyJacobian(const cv::Matx33d& H, const cv::Point2d& p) {
           (H(1, 0) * v[2] - H(2, 0) * v[1]) / w2, (H(1, 1) * v[2] - H(2, 1) * v[1]) / w2};
 }
 
+double HomographyScale(const cv::Matx33d& H, const cv::Point2d& p) {
+  const cv::Matx22d j = HomographyJacobian(H, p);
+  return std::sqrt(std::abs(j(0, 0) * j(1, 1) - j(0, 1) * j(1, 0)));
+}
+
 cv::Point2d ApplyHomography(const cv::Matx33d& H, const cv::Point2d& p) {
   const cv::Vec3d v = H * cv::Vec3d(p.x, p.y, 1.0);
   return {v[0] / v[2], v[1] / v[2]};

@@ -86,5 +86,7 @@ HomographyResult EstimateHomography(const std::vector<cv::Point2f>& src,
 cv::Point2d ApplyHomography(const cv::Matx33d& H, const cv::Point2d& p);
 // The 2x2 Jacobian of the homography's point map at p.
 cv::Matx22d HomographyJacobian(const cv::Matx33d& H, const cv::Point2d& p);
+// The homography's local scale at p: sqrt |det J| (e.g. map pixels per frame pixel).
+double HomographyScale(const cv::Matx33d& H, const cv::Point2d& p);
 
 }  // namespace optinav::features

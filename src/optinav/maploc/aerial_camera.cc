@@ -4,17 +4,13 @@
 
 #include <Eigen/Dense>
 
+#include "optinav/geometry/angles.h"
+
 namespace optinav::maploc {
 
 namespace {
 
 constexpr double kDeg = M_PI / 180.0;
-
-double WrapDeg180(double a) {
-  a = std::fmod(a + 180.0, 360.0);
-  if (a < 0) a += 360.0;
-  return a - 180.0;
-}
 
 Eigen::Matrix3d Scale(double gsd) { return Eigen::Vector3d(gsd, gsd, 1.0).asDiagonal(); }
 
@@ -171,21 +167,23 @@ PoseEstimate RefinePose(const std::vector<Eigen::Vector2d>& image_px,
   auto cost = [&](const Eigen::VectorXd& r, const Eigen::VectorXd& w) {
     return (w.array() * r.array().square()).sum();
   };
+  // Central differences: rotation steps in radians, position steps scaled by the altitude.
   Eigen::Matrix<double, Eigen::Dynamic, 6> jac(rows, 6);
+  auto update_jacobian = [&](const State& at) {
+    for (int j = 0; j < 6; ++j) {
+      Eigen::Matrix<double, 6, 1> d = Eigen::Matrix<double, 6, 1>::Zero();
+      const double h = j < 3 ? 1e-6 : 1e-4 * std::max(1.0, std::abs(at.c.z()));
+      d(j) = h;
+      const Eigen::VectorXd rp = residuals(at.Plus(d));
+      d(j) = -h;
+      jac.col(j) = (rp - residuals(at.Plus(d))) / (2 * h);
+    }
+  };
   Eigen::VectorXd r = residuals(s);
   Eigen::VectorXd w = huber_weights(r);
   double lambda = 1e-3;
   for (int iter = 0; iter < 20 && n >= 4; ++iter) {
-    const double step_rot = 1e-6, step_pos = 1e-4 * std::max(1.0, std::abs(s.c.z()));
-    for (int j = 0; j < 6; ++j) {
-      Eigen::Matrix<double, 6, 1> d = Eigen::Matrix<double, 6, 1>::Zero();
-      const double h = j < 3 ? step_rot : step_pos;
-      d(j) = h;
-      const Eigen::VectorXd rp = residuals(s.Plus(d));
-      d(j) = -h;
-      const Eigen::VectorXd rm = residuals(s.Plus(d));
-      jac.col(j) = (rp - rm) / (2 * h);
-    }
+    update_jacobian(s);
     const Eigen::Matrix<double, 6, 6> a = jac.transpose() * w.asDiagonal() * jac;
     const Eigen::Matrix<double, 6, 1> b = -jac.transpose() * (w.asDiagonal() * r);
     const double c0 = cost(r, w);
@@ -218,14 +216,7 @@ PoseEstimate RefinePose(const std::vector<Eigen::Vector2d>& image_px,
   // Covariance of the centre from the (weighted) normal equations, scaled by the residual spread
   // when it exceeds the assumed pixel sigma.
   if (n >= 4) {
-    for (int j = 0; j < 6; ++j) {
-      Eigen::Matrix<double, 6, 1> d = Eigen::Matrix<double, 6, 1>::Zero();
-      const double h = j < 3 ? 1e-6 : 1e-4 * std::max(1.0, std::abs(s.c.z()));
-      d(j) = h;
-      const Eigen::VectorXd rp = residuals(s.Plus(d));
-      d(j) = -h;
-      jac.col(j) = (rp - residuals(s.Plus(d))) / (2 * h);
-    }
+    update_jacobian(s);
     const Eigen::Matrix<double, 6, 6> info = jac.transpose() * w.asDiagonal() * jac;
     const Eigen::Matrix<double, 6, 6> cov = info.inverse();
     const double spread = std::max(1.0, out.rms_px / priors.pixel_sigma);

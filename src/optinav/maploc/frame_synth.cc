@@ -5,12 +5,44 @@
 #include <random>
 
 #include <fmt/format.h>
+#include <opencv2/core/eigen.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "optinav/features/features.h"
+#include "optinav/geometry/angles.h"
 #include "optinav/util/error.h"
 
 namespace optinav::maploc {
+
+namespace {
+
+// The frame seen through `map_from_frame` (frame px -> map px): the map window under the frame's
+// corners `corners_map` (plus a margin) is read downsampled by `down` (anti-aliasing), then warped.
+// Pixel conventions: frame pixels as camera::PinholeCamera has them (centres at integers, what
+// warpPerspective evaluates); map pixels as GDAL (pixel i covers [i, i + 1)), so the window
+// image's pixel k, covering the map from win.x + k * width / ow, has its centre half a pixel on.
+cv::Mat WarpFromMap(const geo::GeoRaster& raster, const cv::Matx33d& map_from_frame,
+                    const std::vector<cv::Point2f>& corners_map, double down, cv::Size size) {
+  const cv::Rect box = cv::boundingRect(corners_map);
+  constexpr int kMargin = 4;
+  const cv::Rect win(box.x - kMargin, box.y - kMargin, box.width + 2 * kMargin,
+                     box.height + 2 * kMargin);
+  const int ow = std::max(1, static_cast<int>(win.width / down));
+  const int oh = std::max(1, static_cast<int>(win.height / down));
+  if (static_cast<double>(ow) * oh > 4.0e8) {
+    throw Error("the view covers too much of the map to render", {.field = "attitude"});
+  }
+  const cv::Mat img = raster.ReadGray(win.x, win.y, win.width, win.height, ow, oh);
+  const double kx = ow / static_cast<double>(win.width), ky = oh / static_cast<double>(win.height);
+  const cv::Matx33d img_from_map(kx, 0, -win.x * kx - 0.5, 0, ky, -win.y * ky - 0.5, 0, 0, 1);
+  cv::Mat out;
+  cv::warpPerspective(img, out, img_from_map * map_from_frame, size,
+                      cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT);
+  return out;
+}
+
+}  // namespace
 
 cv::Mat SynthesizeFrame(const geo::GeoRaster& raster, double map_gsd_m, const FrameSpec& s,
                         cv::Matx33d* frame_to_map) {
@@ -40,33 +72,9 @@ cv::Mat SynthesizeFrame(const geo::GeoRaster& raster, double map_gsd_m, const Fr
   }
   const cv::Matx33d f2m(cv::getPerspectiveTransform(fpts, mpts));
   if (frame_to_map) *frame_to_map = f2m;
-  // Read the map window covering the frame (with a margin), then warp.
-  const cv::Rect box = cv::boundingRect(mpts);
-  const int margin = 4;
-  const cv::Rect win(box.x - margin, box.y - margin, box.width + 2 * margin,
-                     box.height + 2 * margin);
   // Downsample the window when the frame is much coarser than the map (anti-aliasing).
-  const double down = std::max(1.0, scale);
-  const int ow = std::max(1, static_cast<int>(win.width / down));
-  const int oh = std::max(1, static_cast<int>(win.height / down));
-  const cv::Mat img = raster.ReadGray(win.x, win.y, win.width, win.height, ow, oh);
-  // frame px -> window-image px. Map px as GDAL has them (pixel i covers [i, i + 1)): the
-  // window image's pixel k has its centre half a pixel on, so its index is 0.5 less.
-  const cv::Matx33d to_img =
-      cv::Matx33d(ow / static_cast<double>(win.width), 0,
-                  -win.x * ow / static_cast<double>(win.width) - 0.5, 0,
-                  oh / static_cast<double>(win.height),
-                  -win.y * oh / static_cast<double>(win.height) - 0.5, 0, 0, 1) *
-      f2m;
-  cv::Mat out;
-  cv::warpPerspective(img, out, to_img, cv::Size(s.width, s.height),
-                      cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT);
-  return out;
+  return WarpFromMap(raster, f2m, mpts, std::max(1.0, scale), cv::Size(s.width, s.height));
 }
-
-}  // namespace optinav::maploc
-
-namespace optinav::maploc {
 
 cv::Mat RenderAerialFrame(const geo::GeoRaster& raster, double map_gsd_m, const AerialPose& pose,
                           const camera::PinholeCamera& camera, Eigen::Matrix3d* map_from_image) {
@@ -87,56 +95,18 @@ cv::Mat RenderAerialFrame(const geo::GeoRaster& raster, double map_gsd_m, const 
     }
     mpts.emplace_back(static_cast<float>(m.x() / m.z()), static_cast<float>(m.y() / m.z()));
   }
-  const cv::Rect box = cv::boundingRect(mpts);
-  constexpr int kMargin = 4;
-  const cv::Rect win(box.x - kMargin, box.y - kMargin, box.width + 2 * kMargin,
-                     box.height + 2 * kMargin);
   // Downsample the window by the scale at the principal point (anti-aliasing); the far side of
   // a tilted view is slightly softer than a real camera would give, the near side as sharp.
-  const Eigen::Vector2d pp(camera.cx, camera.cy);
-  auto to_map = [&](const Eigen::Vector2d& p) { return (h * p.homogeneous()).hnormalized(); };
-  const double centre_scale =
-      std::sqrt(std::abs((to_map(pp + Eigen::Vector2d(1, 0)) - to_map(pp)).x() *
-                             (to_map(pp + Eigen::Vector2d(0, 1)) - to_map(pp)).y() -
-                         (to_map(pp + Eigen::Vector2d(1, 0)) - to_map(pp)).y() *
-                             (to_map(pp + Eigen::Vector2d(0, 1)) - to_map(pp)).x()));
-  const double down = std::max(1.0, 0.8 * centre_scale);
-  const int ow = std::max(1, static_cast<int>(win.width / down));
-  const int oh = std::max(1, static_cast<int>(win.height / down));
-  if (static_cast<double>(ow) * oh > 4.0e8) {
-    throw Error("the view covers too much of the map to render", {.field = "attitude"});
-  }
-  const cv::Mat img = raster.ReadGray(win.x, win.y, win.width, win.height, ow, oh);
-  Eigen::Matrix3d to_img;
-  to_img << ow / static_cast<double>(win.width), 0, -win.x * ow / static_cast<double>(win.width), 0,
-      oh / static_cast<double>(win.height), -win.y * oh / static_cast<double>(win.height), 0, 0, 1;
-  // Pixel conventions: frame pixels as camera::PinholeCamera has them (centres at integers,
-  // what warpPerspective evaluates); map pixels as GDAL (pixel i covers [i, i + 1)), so window-
-  // image pixel i, covering the map from win.x + i * width / ow, has its centre half a pixel on.
-  Eigen::Matrix3d index_of_centre = Eigen::Matrix3d::Identity();
-  index_of_centre.topRightCorner<2, 1>().setConstant(-0.5);
-  const Eigen::Matrix3d img_from_frame = index_of_centre * to_img * h;
-  cv::Matx33d m;
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) m(r, c) = img_from_frame(r, c);
-  cv::Mat out;
-  cv::warpPerspective(img, out, m, cv::Size(camera.width, camera.height),
-                      cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT);
-  return out;
+  cv::Matx33d map_from_frame;
+  cv::eigen2cv(h, map_from_frame);
+  const double centre_scale = features::HomographyScale(map_from_frame, {camera.cx, camera.cy});
+  return WarpFromMap(raster, map_from_frame, mpts, std::max(1.0, 0.8 * centre_scale),
+                     cv::Size(camera.width, camera.height));
 }
-
-}  // namespace optinav::maploc
-
-namespace optinav::maploc {
 
 namespace {
 
 constexpr double kDeg = M_PI / 180.0;
-
-double WrapDeg360(double a) {
-  a = std::fmod(a, 360.0);
-  return a < 0 ? a + 360.0 : a;
-}
 
 uint64_t SplitMix64(uint64_t x) {
   x += 0x9E3779B97F4A7C15ull;
@@ -204,6 +174,14 @@ std::string PerspectiveFrameOptions::Check() const {
            "prior radius positive";
   }
   return "";
+}
+
+double RasterUpBearingDeg(const geo::GeoRaster& raster, const Eigen::Vector2d& px) {
+  const geo::CrsTransform crs(raster.crs_wkt());
+  auto latlon = [&](const Eigen::Vector2d& p) {
+    return crs.ToLatLon(raster.transform().PixelToCrs(p));
+  };
+  return geo::GeodesicInverse(latlon(px), latlon(px + Eigen::Vector2d(0, -20))).azimuth1_deg;
 }
 
 double RasterGsdMetres(const geo::GeoRaster& raster) {
@@ -285,10 +263,7 @@ std::vector<PerspectiveFrame> MakePerspectiveFrames(const geo::GeoRaster& raster
     f.centre_latlon = latlon(f.centre_px);
     // The yaw is relative to the raster's up direction; its true bearing at the vehicle turns it
     // into a heading from true north (meridian convergence, or a rotated raster).
-    const double up_bearing =
-        geo::GeodesicInverse(f.latlon, latlon(pose.nadir_px + Eigen::Vector2d(0, -20)))
-            .azimuth1_deg;
-    f.heading_deg = WrapDeg360(pose.attitude.yaw_deg + up_bearing);
+    f.heading_deg = WrapDeg360(pose.attitude.yaw_deg + RasterUpBearingDeg(raster, pose.nadir_px));
 
     // What locate is given.
     const double offset = o.prior_offset_m * std::sqrt(u01(rng));

@@ -114,4 +114,8 @@ std::vector<PerspectiveFrame> MakePerspectiveFrames(const geo::GeoRaster& raster
 // Metres per pixel of a raster at its centre (for rasters in metric or geographic CRSs).
 double RasterGsdMetres(const geo::GeoRaster& raster);
 
+// True bearing (degrees clockwise from north) of the raster's up direction (-y) at pixel `px`:
+// the yaw of an AerialPose (relative to raster up) plus this is a heading from true north.
+double RasterUpBearingDeg(const geo::GeoRaster& raster, const Eigen::Vector2d& px);
+
 }  // namespace optinav::maploc

@@ -9,6 +9,7 @@
 #include <unordered_set>
 
 #include <fmt/format.h>
+#include <opencv2/core/eigen.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "optinav/geo/raster.h"
@@ -98,15 +99,13 @@ struct OcPeak {
 
 cv::Matx33d ToCv(const Eigen::Matrix3d& m) {
   cv::Matx33d c;
-  for (int r = 0; r < 3; ++r)
-    for (int k = 0; k < 3; ++k) c(r, k) = m(r, k);
+  cv::eigen2cv(m, c);
   return c;
 }
 
 Eigen::Matrix3d ToEigen(const cv::Matx33d& c) {
   Eigen::Matrix3d m;
-  for (int r = 0; r < 3; ++r)
-    for (int k = 0; k < 3; ++k) m(r, k) = c(r, k);
+  cv::cv2eigen(c, m);
   return m;
 }
 
@@ -456,7 +455,6 @@ struct Locator::Impl {
               double unknown_attitude_sigma_deg = 20.0) {
     const double gsd = db.map_gsd_m;
     const Eigen::Matrix3d map_from_frame = map_from_work * pf.work_from_frame;
-    const Eigen::Vector2d pp(pf.K(0, 2), pf.K(1, 2));
     const Eigen::Vector2d c = pf.Centre();
     r->centre_px = Apply(map_from_frame, c);
     if (!r->centre_px.allFinite() || r->centre_px.x() < 0 || r->centre_px.y() < 0 ||
@@ -464,17 +462,15 @@ struct Locator::Impl {
       r->reason = "the frame centre maps outside the map";
       return false;
     }
-    const cv::Matx22d j = features::HomographyJacobian(ToCv(map_from_frame), {c.x(), c.y()});
-    r->scale = std::sqrt(std::abs(j(0, 0) * j(1, 1) - j(0, 1) * j(1, 0)));
+    r->scale = features::HomographyScale(ToCv(map_from_frame), {c.x(), c.y()});
     // The pose the rectification implies (a level camera sees the work image).
     AerialPose assumed;
     assumed.nadir_px = Apply(map_from_work, pf.nadir_work);
     const Eigen::Vector2d ahead =
         Apply(map_from_work, pf.nadir_work + Eigen::Vector2d(0, -10)) - assumed.nadir_px;
-    const cv::Matx22d jw =
-        features::HomographyJacobian(ToCv(map_from_work), {pf.nadir_work.x(), pf.nadir_work.y()});
-    const double work_scale = std::sqrt(std::abs(jw(0, 0) * jw(1, 1) - jw(0, 1) * jw(1, 0)));
-    assumed.altitude_m = work_scale * gsd * pf.K(0, 0);
+    assumed.altitude_m =
+        features::HomographyScale(ToCv(map_from_work), {pf.nadir_work.x(), pf.nadir_work.y()}) *
+        gsd * pf.K(0, 0);
     assumed.attitude = {.roll_deg = prior.roll_deg.value_or(0.0),
                         .pitch_deg = prior.pitch_deg.value_or(0.0),
                         .yaw_deg = std::atan2(ahead.x(), -ahead.y()) / kDeg};

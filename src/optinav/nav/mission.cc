@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 
 #include "optinav/geo/geo.h"
+#include "optinav/geometry/angles.h"
 #include "optinav/maploc/aerial_camera.h"
 #include "optinav/maploc/frame_synth.h"
 #include "optinav/util/timer.h"
@@ -17,11 +18,6 @@ namespace optinav::nav {
 namespace {
 
 constexpr double kDeg = M_PI / 180.0;
-
-double WrapDeg(double a) {
-  a = std::fmod(a, 360.0);
-  return a < 0 ? a + 360.0 : a;
-}
 
 // Angle (radians, clockwise from raster up) of a pixel direction.
 double PixelAngle(const Eigen::Vector2d& d) { return std::atan2(d.x(), -d.y()); }
@@ -198,7 +194,8 @@ MissionResult Mission::Run(const MissionOptions& o) {
   constexpr double kAttitudeCorrelation = 0.95;
   Eigen::Vector2d attitude_error =
       o.attitude_noise_deg * Eigen::Vector2d(n01(attitude_rng), n01(attitude_rng));
-  double flight_heading = WrapDeg(command + compass_bias), previous_flight_heading = flight_heading;
+  double flight_heading = WrapDeg360(command + compass_bias),
+         previous_flight_heading = flight_heading;
   double flight_dt = o.step_s;
   Eigen::Matrix3d previous_nadir_from_image = Eigen::Matrix3d::Identity();
   std::vector<Eigen::Vector2d> rejected_innovations;  // consecutive rejected fixes
@@ -210,7 +207,7 @@ MissionResult Mission::Run(const MissionOptions& o) {
     log.t_s = t;
     log.truth = truth;
     log.command_heading_deg = command;
-    const double truth_heading = WrapDeg(command + compass_bias);
+    const double truth_heading = WrapDeg360(command + compass_bias);
     log.truth_heading_deg = truth_heading;
 
     // 1. The camera frame at the true pose.
@@ -237,14 +234,14 @@ MissionResult Mission::Run(const MissionOptions& o) {
         .altitude_m = alt,
         .attitude = {.roll_deg = roll,
                      .pitch_deg = pitch,
-                     .yaw_deg = WrapDeg(im.HeadingInFrames(truth, camera_heading))}};
+                     .yaw_deg = WrapDeg360(im.HeadingInFrames(truth, camera_heading))}};
     cv::Mat frame = maploc::RenderAerialFrame(im.frames, im.frames_gsd, pose, im.camera);
     ApplyPhotometricEffects(frame, o.effects, 0.0, effects_rng);
     if (o.weather) {
       FrameView view;
       view.t_ns = static_cast<int64_t>(std::llround(t * 1e9));
       view.position_enu << to_enu(truth), alt;
-      view.heading_deg = WrapDeg(camera_heading);
+      view.heading_deg = WrapDeg360(camera_heading);
       view.roll_deg = roll;
       view.pitch_deg = pitch;
       view.focal_px = im.focal;
@@ -438,7 +435,7 @@ MissionResult Mission::Run(const MissionOptions& o) {
     const bool arrived = to_target.distance_m <= o.arrive_radius_m;
     const bool timeout = t >= time_limit;
     if (!arrived && !timeout && (o.use_odometry || log.fix_accepted)) {
-      command = WrapDeg(to_target.azimuth1_deg);
+      command = WrapDeg360(to_target.azimuth1_deg);
     }
     log.times.navigation_ms = nav.ElapsedMs();
     res.steps.push_back(log);
@@ -452,7 +449,7 @@ MissionResult Mission::Run(const MissionOptions& o) {
     const double dt = dist / o.speed_m_s;
     const geo::LatLon before = truth;
     previous_flight_heading = flight_heading;
-    flight_heading = WrapDeg(command + compass_bias);
+    flight_heading = WrapDeg360(command + compass_bias);
     flight_dt = dt;
     truth = geo::GeodesicDirect(truth, flight_heading, dist);
     if (o.wind_m_s > 0) truth = geo::GeodesicDirect(truth, wind_dir, o.wind_m_s * dt);
