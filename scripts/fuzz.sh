@@ -9,7 +9,8 @@
 # leaves its input in build-fuzz/crashes/<name>/ and makes the script exit 1 (after running every
 # harness): copy the input to fuzz/regressions/<name>/ and fix the parser. Per harness, the
 # summary gives executions, coverage (cov: edges, ft: features) and corpus size, from
-# -print_final_stats=1; logs in build-fuzz/logs/.
+# -print_final_stats=1; logs in build-fuzz/logs/. OPTINAV_FUZZ_RUNS=N also stops a harness after
+# N executions (the issue's "10^6 executions or 1 hour": OPTINAV_FUZZ_RUNS=1000000 fuzz.sh 3600).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 SECONDS_EACH="${1:-60}"
@@ -99,7 +100,8 @@ for h in "${HARNESSES[@]}"; do
   echo "fuzz.sh: ${h} for ${SECONDS_EACH} s"
   set +e
   # shellcheck disable=SC2046
-  "${BUILD}/fuzz/fuzz_${h}" -max_total_time="${SECONDS_EACH}" -print_final_stats=1 \
+  "${BUILD}/fuzz/fuzz_${h}" -max_total_time="${SECONDS_EACH}" -runs="${OPTINAV_FUZZ_RUNS:--1}" \
+    -print_final_stats=1 \
     -timeout=30 -rss_limit_mb=3072 -max_len="$(max_len "${h}")" $(dict "${h}") \
     -artifact_prefix="${BUILD}/crashes/${h}/" "${BUILD}/work/${h}" "${SEEDS}/${h}" \
     "${ROOT}/fuzz/corpus/${h}" "${ROOT}/fuzz/regressions/${h}" >"${log}" 2>&1

@@ -2,6 +2,8 @@
 
 #include <cmath>
 #include <filesystem>
+#include <string>
+#include <vector>
 
 #include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
@@ -18,6 +20,23 @@ namespace {
 constexpr double kDeg = M_PI / 180.0;
 constexpr double kDefaultHfovDeg = 90.0;
 
+// Encodes by the file's extension and writes through a temporary file and a rename: an
+// interrupted or failed write (disk full) leaves the old file or none, never half an image.
+void WriteImageAtomically(const std::string& path, const cv::Mat& image,
+                          const std::vector<int>& params = {}) {
+  std::vector<uchar> buf;
+  const std::string ext = std::filesystem::path(path).extension().string();
+  bool encoded = false;
+  try {
+    encoded = !ext.empty() && cv::imencode(ext, image, buf, params);
+  } catch (const cv::Exception&) {  // no encoder for the extension
+  }
+  if (!encoded) {
+    throw Error("cannot encode the image (use .png, .jpg or .tif)", {.file = path});
+  }
+  io::WriteFileAtomically(path, std::string(buf.begin(), buf.end()));
+}
+
 // The legacy model: a frame centred on `at` with the tilt of maploc::SynthesizeFrame.
 RenderedFrame RenderLegacyTilt(const FrameRenderOptions& o, const geo::GeoRaster& raster,
                                const Eigen::Vector2d& at_px, double map_gsd) {
@@ -30,7 +49,7 @@ RenderedFrame RenderLegacyTilt(const FrameRenderOptions& o, const geo::GeoRaster
   s.tilt_deg = *o.tilt_deg;
   s.tilt_azimuth_deg = o.tilt_azimuth_deg;
   const cv::Mat frame = maploc::SynthesizeFrame(raster, map_gsd, s);
-  if (!cv::imwrite(o.out_path, frame)) throw Error("cannot write image", {.file = o.out_path});
+  WriteImageAtomically(o.out_path, frame);
   return {.gsd_m = s.gsd_m, .altitude_m = 0, .centre = o.at};
 }
 
@@ -83,7 +102,7 @@ RenderedFrame RenderFrame(const FrameRenderOptions& o) {
                                        .yaw_deg = WrapDeg360(o.heading_deg - up_bearing)}};
   Eigen::Matrix3d map_from_image;
   const cv::Mat frame = maploc::RenderAerialFrame(raster, map_gsd, pose, cam, &map_from_image);
-  if (!cv::imwrite(o.out_path, frame)) throw Error("cannot write image", {.file = o.out_path});
+  WriteImageAtomically(o.out_path, frame);
   const Eigen::Vector2d centre =
       (map_from_image * Eigen::Vector3d(cam.cx, cam.cy, 1)).hnormalized();
   return {.gsd_m = altitude / cam.fx, .altitude_m = altitude, .centre = latlon(centre)};
@@ -118,8 +137,8 @@ FrameSetSummary RenderFrameSet(const FrameSetOptions& o) {
     const std::string image = (dir / fmt::format("frame_{:0{}d}.jpg", i, digits)).string();
     if (!f.jpeg.empty()) {
       io::WriteFileAtomically(image, std::string(f.jpeg.begin(), f.jpeg.end()));
-    } else if (!cv::imwrite(image, f.image, {cv::IMWRITE_JPEG_QUALITY, 100})) {
-      throw Error("cannot write image", {.file = image});
+    } else {
+      WriteImageAtomically(image, f.image, {cv::IMWRITE_JPEG_QUALITY, 100});
     }
     given +=
         fmt::format("{},{:.8f},{:.8f},{:.1f},{:.3f},{:.1f},{:.2f},{:.3f},{:.3f}\n", image,

@@ -406,7 +406,8 @@ MissionExperimentResult RunMissionExperiment(
     const std::function<void(const MissionRunOutcome&)>& on_run) {
   if (const std::string e = opt.Check(); !e.empty()) throw Error(e);
   const std::unique_ptr<Setup> s = PrepareSetup(opt);
-  io::PrepareOutputDir(opt.out_dir, opt.force);
+  io::PrepareOutputDir(opt.out_dir, opt.force, io::OnForce::kWriteInto, "--out", "summary.json");
+  io::MarkInProgress(opt.out_dir, "optinav mission");
   const fs::path out(opt.out_dir);
   std::unique_ptr<Background> bg;
   if (opt.pictures != "none") {
@@ -432,8 +433,10 @@ MissionExperimentResult RunMissionExperiment(
   bar.Finish();
   Summarize(samples, result);
   result.summary = SummaryJson(opt, *s, samples, result);
-  io::WriteFileAtomically((out / "summary.json").string(), result.summary.dump(2) + "\n");
   WriteAllRunsOutputs(opt, *s, bg.get(), result);
+  // Written last: the folder's completion marker (a folder without it is an interrupted run).
+  io::ClearInProgress(opt.out_dir);
+  io::WriteFileAtomically((out / "summary.json").string(), result.summary.dump(2) + "\n");
   return result;
 }
 

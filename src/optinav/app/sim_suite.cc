@@ -25,7 +25,7 @@ size_t RunWeatherSuite(const sim::SimulationOptions& options,
                        const std::function<void(size_t, const sim::SuiteEntry&,
                                                 const sim::SimulationSummary&)>& done) {
   if (const std::string msg = options.Check(); !msg.empty()) throw Error(msg);
-  io::PrepareOutputDir(options.out_dir, options.force, io::OnForce::kClear, "out");
+  io::PrepareOutputDir(options.out_dir, options.force, io::OnForce::kClear, "--out");
   const auto suite = sim::WeatherSuite();
   size_t frames = 0;
   for (size_t i = 0; i < suite.size(); ++i) {

@@ -189,6 +189,7 @@ nlohmann::json VioStatsJson(const VioRunReport& report) {
   j["frames_unpaired"] = r.frames_unpaired;
   j["poses"] = r.estimates.size();
   j["initializations"] = r.initializations;
+  j["frozen_frames"] = r.frozen_frames;
   j["first_initialization"] = r.first_init_kind;
   nlohmann::json timing = nlohmann::json::object();
   for (const auto& [stage, s] : r.timing)

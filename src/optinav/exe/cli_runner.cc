@@ -1,7 +1,10 @@
 #include "optinav/exe/cli_runner.h"
 
+#include <algorithm>
 #include <cstdio>
+#include <vector>
 
+#include "optinav/io/text_parse.h"
 #include "optinav/util/logging.h"
 
 namespace optinav::cli {
@@ -28,6 +31,22 @@ void AddLogLevel(CLI::App& app, std::string* level) {
   for (CLI::App* sub : app.get_subcommands({})) AddLogLevel(*sub, level);
 }
 
+// The options marked by OutputFile (compared by address with the parsed app's own).
+std::vector<const CLI::Option*>& OutputOptions() {
+  static std::vector<const CLI::Option*> options;
+  return options;
+}
+
+void CheckOutputFiles(const CLI::App& app) {
+  for (const CLI::Option* o : app.get_options()) {
+    if (o->count() == 0 ||
+        std::find(OutputOptions().begin(), OutputOptions().end(), o) == OutputOptions().end())
+      continue;
+    for (const std::string& path : o->results()) io::CheckOutputFile(path, o->get_name());
+  }
+  for (const CLI::App* sub : app.get_subcommands()) CheckOutputFiles(*sub);
+}
+
 void PrintError(const CLI::App& app, const std::string& message, bool usage) {
   std::fprintf(stderr, "%s: error: %s\n", app.get_name().c_str(), message.c_str());
   if (usage) std::fprintf(stderr, "run '%s --help' for the options\n", app.get_name().c_str());
@@ -35,6 +54,11 @@ void PrintError(const CLI::App& app, const std::string& message, bool usage) {
 }
 
 }  // namespace
+
+CLI::Option* OutputFile(CLI::Option* option) {
+  OutputOptions().push_back(option);
+  return option;
+}
 
 int RunCli(CLI::App& app, int argc, char** argv, const std::function<int()>& run,
            const RunnerOptions& options) {
@@ -54,6 +78,7 @@ int RunCli(CLI::App& app, int argc, char** argv, const std::function<int()>& run
   }
   try {
     SetLogLevel(level);
+    CheckOutputFiles(app);
     return run();
   } catch (const UsageError& e) {
     PrintError(app, e.what(), true);

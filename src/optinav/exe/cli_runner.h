@@ -41,6 +41,10 @@ struct RunnerOptions {
 int RunCli(CLI::App& app, int argc, char** argv, const std::function<int()>& run,
            const RunnerOptions& options = {});
 
+// Marks `option` as naming an output file: before the run, RunCli refuses (exit 1, through
+// io::CheckOutputFile) a value that is a folder or lies in a folder that cannot be written.
+CLI::Option* OutputFile(CLI::Option* option);
+
 // Output-folder options: --out DIR (required) and --force (write into / replace a non-empty
 // folder). Prepare() makes the folder ready through io::PrepareOutputDir.
 struct OutputDirOptions {

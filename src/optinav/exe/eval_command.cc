@@ -41,12 +41,14 @@ void AddCommonOptions(CLI::App* cmd, EvaluationSettings* st, NamedFlags* named) 
                 "afterwards make the first poses coincide");
   cmd->add_option("--pose-relation", named->relation, "trans|rot|full|angle_deg|angle_rad")
       ->capture_default_str();
-  cmd->add_option("--json", st->json_path, "write the statistics as JSON");
-  cmd->add_option("--plot", st->plot_path, "write an SVG plot (top view + error over time)");
+  cli::OutputFile(cmd->add_option("--json", st->json_path, "write the statistics as JSON"));
+  cli::OutputFile(
+      cmd->add_option("--plot", st->plot_path, "write an SVG plot (top view + error over time)"));
   cmd->add_option("--plot-plane", st->plot_plane, "plane of the top view: xy|xz|yz")
       ->capture_default_str();
-  cmd->add_option("--save-aligned", st->aligned_out_path,
-                  "write the associated, aligned estimate (TUM; KITTI without stamps)");
+  cli::OutputFile(
+      cmd->add_option("--save-aligned", st->aligned_out_path,
+                      "write the associated, aligned estimate (TUM; KITTI without stamps)"));
 }
 
 void AddRpeOptions(CLI::App* rpe, EvaluationSettings* st, NamedFlags* named) {

@@ -35,7 +35,7 @@ void AddBuild(CLI::App& app, BuildFlags& f) {
   app.add_option("--features", f.features, "orb|sift|brisk")->capture_default_str();
   app.add_option("--max-features", o.max_features, "features per tile")->capture_default_str();
   app.add_option("--threads", o.threads, "worker threads (0: all cores)")->capture_default_str();
-  app.add_option("--out", f.out, "output database (SQLite)")->required();
+  cli::OutputFile(app.add_option("--out", f.out, "output database (SQLite)"))->required();
 }
 
 int RunBuild(BuildFlags f) {
@@ -160,7 +160,7 @@ void AddRender(CLI::App& app, RenderFlags& f) {
       app.add_option("--pitch", o.pitch_deg, "pitch, deg, nose up positive"),
       app.add_option("--tilt", f.tilt, "legacy tilt model: camera tilt from nadir (deg)"),
       app.add_option("--tilt-azimuth", o.tilt_azimuth_deg, "legacy: tilt direction in the frame"),
-      app.add_option("--out", o.out_path, "output image (PNG, JPEG)")};
+      cli::OutputFile(app.add_option("--out", o.out_path, "output image (PNG, JPEG)"))};
   app.add_option("--altitude", f.altitude, "height above ground (m); with --set: nominal (640)");
   app.add_option("--hfov", f.hfov, "horizontal field of view (deg, default 90)");
   app.add_option("--frame-size", f.frame_size, "WxH")->capture_default_str();

@@ -1,6 +1,7 @@
 // The single optinav binary: `optinav [--log-level L] <command> [options]`, one Run<Command> per
 // command. The top level goes through cli::RunCli like every command (same messages, exit 2 for
 // a missing or unknown command); everything from the command name on is the command's.
+#include <csignal>
 #include <string>
 #include <vector>
 
@@ -64,6 +65,9 @@ int Dispatch(const CLI::App& app, std::vector<std::string> args, const std::stri
 }  // namespace
 
 int main(int argc, char** argv) {
+  // A file-size limit (ulimit -f) or a full quota makes write() fail with EFBIG instead of
+  // killing the process: the writers then report it and leave the old file in place.
+  std::signal(SIGXFSZ, SIG_IGN);
   optinav::InitLogging();
   CLI::App app{
       fmt::format("optinav {}: navigation when GNSS is jammed, spoofed or lost", OPTINAV_VERSION),

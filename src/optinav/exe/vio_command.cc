@@ -27,16 +27,21 @@ void AddRunOptions(CLI::App& cmd, app::VioRunSettings* st, VioFlags* f) {
       ->capture_default_str();
   cmd.add_option("--config", st->config_path,
                  "YAML options (see config/vio_euroc.yaml); defaults built in");
-  cmd.add_option("--out", st->out, "output trajectory of the body (IMU) frame, TUM")->required();
-  cmd.add_option("--camera-out", st->camera_out, "also write the left camera's trajectory, TUM");
-  cmd.add_option("--stats", st->stats_path,
-                 "timing per module (median, p95 per frame) and lost intervals, JSON");
+  cli::OutputFile(
+      cmd.add_option("--out", st->out, "output trajectory of the body (IMU) frame, TUM"))
+      ->required();
+  cli::OutputFile(cmd.add_option("--camera-out", st->camera_out,
+                                 "also write the left camera's trajectory, TUM"));
+  cli::OutputFile(
+      cmd.add_option("--stats", st->stats_path,
+                     "timing per module (median, p95 per frame) and lost intervals, JSON"));
   cmd.add_option("--mode", f->mode, "stereo-imu|stereo (default: the config's, else stereo-imu)");
   cmd.add_option("--loop-closure", f->loop_closure,
                  "on|off: close loops with earlier keyframes and correct the output (default: "
                  "the config's: on in stereo mode, off in stereo-imu mode; never with --gnss)");
-  cmd.add_option("--odometry-out", st->odometry_out,
-                 "also write the body trajectory before the loop corrections, TUM");
+  cli::OutputFile(
+      cmd.add_option("--odometry-out", st->odometry_out,
+                     "also write the body trajectory before the loop corrections, TUM"));
   cmd.add_flag("--sequential", st->sequential,
                "run in one thread (default: loader, frontend and backend threads; the same "
                "result, the frontend waits for the backend feedback it uses)");
@@ -63,14 +68,16 @@ void AddGnssOptions(CLI::App& cmd, app::VioRunSettings* st, VioFlags* f) {
   cmd.add_option("--gnss-lever-arm", f->gnss_lever_arm,
                  "antenna in the body frame X,Y,Z, m (default: gnss0/sensor.yaml T_BS)");
   cli::AddGnssFusionFlags(cmd, &f->fusion);
-  cmd.add_option("--gnss-live-out", st->gnss_live_out,
-                 "the live estimate in ENU, TUM (default with smoothing: TRAJ.live.tum)");
-  cmd.add_option("--wgs84-out", st->wgs84_out,
-                 "fused trajectory in WGS84 csv (default TRAJ.wgs84.csv)");
-  cmd.add_option("--geojson-out", st->geojson_out,
-                 "fused trajectory as GeoJSON (default TRAJ.geojson)");
-  cmd.add_option("--gnss-rejected-out", st->gnss_rejected_out,
-                 "rejected GNSS samples with their reason (default TRAJ.gnss_rejected.csv)");
+  cli::OutputFile(
+      cmd.add_option("--gnss-live-out", st->gnss_live_out,
+                     "the live estimate in ENU, TUM (default with smoothing: TRAJ.live.tum)"));
+  cli::OutputFile(cmd.add_option("--wgs84-out", st->wgs84_out,
+                                 "fused trajectory in WGS84 csv (default TRAJ.wgs84.csv)"));
+  cli::OutputFile(cmd.add_option("--geojson-out", st->geojson_out,
+                                 "fused trajectory as GeoJSON (default TRAJ.geojson)"));
+  cli::OutputFile(
+      cmd.add_option("--gnss-rejected-out", st->gnss_rejected_out,
+                     "rejected GNSS samples with their reason (default TRAJ.gnss_rejected.csv)"));
 }
 
 // "A,B,C" of `flag` -> three numbers; a malformed value is a usage error.

@@ -58,6 +58,7 @@ AirsimRecording ReadAirsimRecording(const std::string& path, const AirsimReadOpt
   if (fs::is_directory(rec_file)) rec_file /= "airsim_rec.txt";
   const fs::path dir = rec_file.parent_path();
   const std::string file = rec_file.string();
+  CheckNotInProgress(dir.empty() ? "." : dir.string());
   AirsimRecording out;
   out.dir = dir.string();
   const std::string text = ReadFileToString(file);

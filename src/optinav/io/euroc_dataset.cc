@@ -165,6 +165,7 @@ std::vector<ImuSample> ReadImuCsv(const std::string& data_csv) {
 EurocDataset OpenEurocDataset(const std::string& dir, const EurocOpenOptions& options) {
   fs::path root(dir);
   if (!fs::is_directory(root)) throw Error("dataset folder not found", {.file = dir});
+  CheckNotInProgress(dir);
   if (fs::is_directory(root / "mav0")) root /= "mav0";
   EurocDataset ds;
   ds.mav0_dir = root.string();

@@ -1,5 +1,6 @@
 #include "optinav/io/text_parse.h"
 
+#include <cerrno>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -384,8 +385,29 @@ void WriteFileAtomically(const std::string& path, const std::string& content) {
   }
 }
 
+void CheckOutputFile(const std::string& path, const std::string& field) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) {
+    throw Error("is a folder; give the output file's name", {.file = path, .field = field});
+  }
+  fs::path dir = fs::path(path).parent_path();
+  if (dir.empty()) dir = ".";
+  while (!fs::exists(dir, ec) && dir.has_parent_path() && dir != dir.parent_path()) {
+    dir = dir.parent_path();
+  }
+  if (fs::exists(dir, ec) && !fs::is_directory(dir, ec)) {
+    throw Error("cannot write " + path + ": " + dir.string() + " is not a folder",
+                {.file = dir.string(), .field = field});
+  }
+  if (::access(dir.c_str(), W_OK) != 0) {
+    throw Error("cannot write " + path + " into this folder: " + std::strerror(errno),
+                {.file = dir.string(), .field = field});
+  }
+}
+
 void PrepareOutputDir(const std::string& dir, bool force, OnForce on_force,
-                      const std::string& field) {
+                      const std::string& field, const std::string& completion_marker) {
   namespace fs = std::filesystem;
   std::error_code ec;
   if (fs::exists(dir, ec)) {
@@ -393,6 +415,11 @@ void PrepareOutputDir(const std::string& dir, bool force, OnForce on_force,
       throw Error("exists and is not a directory", {.file = dir, .field = field});
     }
     if (!fs::is_empty(dir, ec)) {
+      if (!force && fs::exists(fs::path(dir) / kInProgressMarker, ec)) {
+        throw Error(std::string("output folder holds an interrupted run (") + kInProgressMarker +
+                        " is still there); use --force to replace it",
+                    {.file = dir, .field = field});
+      }
       if (!force) {
         throw Error(on_force == OnForce::kClear
                         ? "output folder exists and is not empty (use --force to replace its "
@@ -402,11 +429,41 @@ void PrepareOutputDir(const std::string& dir, bool force, OnForce on_force,
       }
       if (on_force == OnForce::kClear) {
         for (const auto& entry : fs::directory_iterator(dir)) fs::remove_all(entry.path());
+      } else if (!completion_marker.empty()) {
+        // The old run's marker goes first: if this run is interrupted, the folder must not
+        // pass for complete with the new files mixed into the old run's.
+        fs::remove(fs::path(dir) / completion_marker, ec);
+        if (ec)
+          throw Error("cannot remove " + completion_marker + ": " + ec.message(), {.file = dir});
       }
     }
   }
   fs::create_directories(dir, ec);
   if (ec) throw Error("cannot create output folder: " + ec.message(), {.file = dir});
+}
+
+void MarkInProgress(const std::string& dir, const std::string& what) {
+  WriteFileAtomically((std::filesystem::path(dir) / kInProgressMarker).string(),
+                      what +
+                          " is writing this folder; this file is removed when it is complete. "
+                          "If it is still here, the run was interrupted: run it again.\n");
+}
+
+void ClearInProgress(const std::string& dir) {
+  std::error_code ec;
+  std::filesystem::remove(std::filesystem::path(dir) / kInProgressMarker, ec);
+  if (ec)
+    throw Error("cannot remove " + std::string(kInProgressMarker) + ": " + ec.message(),
+                {.file = dir});
+}
+
+void CheckNotInProgress(const std::string& dir) {
+  std::error_code ec;
+  if (std::filesystem::exists(std::filesystem::path(dir) / kInProgressMarker, ec)) {
+    throw Error(std::string("an interrupted run's folder (it holds ") + kInProgressMarker +
+                    "): run the command that writes it again",
+                {.file = dir});
+  }
 }
 
 }  // namespace optinav::io

@@ -76,11 +76,28 @@ std::string FormatNsAsSeconds(int64_t t_ns);
 // half-written file and an existing file survives a failed write.
 void WriteFileAtomically(const std::string& path, const std::string& content);
 
+// Checks, before any work, that `path` can become an output file: it is not a folder, and the
+// nearest existing folder on its way can be written to. Throws an Error naming the path and
+// `field` (the flag) otherwise, so a long run does not fail only at its last write.
+void CheckOutputFile(const std::string& path, const std::string& field);
+
 // What a forced run does with a non-empty output folder: write into it, or empty it first.
 enum class OnForce { kWriteInto, kClear };
 // Makes `dir` ready for a command's outputs: creates it, or refuses (Error naming `field`) when it
-// exists and is not empty unless `force`.
+// exists and is not empty unless `force` (a folder holding kInProgressMarker is named as an
+// interrupted run). With `force` and a `completion_marker` (the file a complete run writes last),
+// the old marker is removed first, so an interrupted forced run never passes for complete.
 void PrepareOutputDir(const std::string& dir, bool force, OnForce on_force = OnForce::kWriteInto,
-                      const std::string& field = "--out");
+                      const std::string& field = "--out",
+                      const std::string& completion_marker = "");
+
+// A folder that a command is still writing (or that a killed run left) holds this file: written
+// first, removed after the completion marker. Dataset readers refuse such a folder, so an
+// interrupted simulation is never taken for a short, complete sequence.
+inline constexpr const char* kInProgressMarker = "optinav_incomplete.txt";
+void MarkInProgress(const std::string& dir, const std::string& what);
+void ClearInProgress(const std::string& dir);
+// Throws an Error naming `dir` when it holds kInProgressMarker.
+void CheckNotInProgress(const std::string& dir);
 
 }  // namespace optinav::io

@@ -197,7 +197,8 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
   std::vector<int64_t> frame_times;
   for (int64_t t = kStartNs; t <= end_ns; t += period_ns) frame_times.push_back(t);
 
-  io::PrepareOutputDir(options.out_dir, options.force, io::OnForce::kClear, "out");
+  io::PrepareOutputDir(options.out_dir, options.force, io::OnForce::kClear, "--out", kMarker);
+  io::MarkInProgress(options.out_dir, "optinav sim");
   const fs::path out(options.out_dir);
   const bool euroc = options.format == DatasetFormat::kEuroc;
   const fs::path mav0 = out / "mav0";
@@ -368,6 +369,9 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
     j["speed_m_s"] = options.speed_m_s;
     j["altitude_m"] = options.altitude_m;
   }
+  // Every data file is in place: the folder stops being refused by the readers, then the marker
+  // tells the next run and the benchmarks that it is complete.
+  io::ClearInProgress(options.out_dir);
   io::WriteFileAtomically((out / kMarker).string(), j.dump(2) + "\n");
   summary.wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();

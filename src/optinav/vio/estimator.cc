@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <map>
 #include <variant>
 
@@ -192,6 +193,20 @@ VioOptions LoadVioOptions(const std::string& path) {
 }
 
 namespace {
+
+bool SameImage(const cv::Mat& a, const cv::Mat& b) {
+  if (a.size() != b.size() || a.type() != b.type()) return false;
+  for (int r = 0; r < a.rows; ++r)
+    if (std::memcmp(a.ptr(r), b.ptr(r), a.cols * a.elemSize()) != 0) return false;
+  return true;
+}
+
+// A uniform (e.g. black) frame is no frozen camera: it is tracked and loses the track.
+bool HasTexture(const cv::Mat& m) {
+  double lo = 0, hi = 0;
+  cv::minMaxLoc(m.reshape(1), &lo, &hi);
+  return hi > lo;
+}
 
 RigExtrinsics MakeExtrinsics(const camera::StereoRig& rig, const Rigid3d& body_from_cam0) {
   RigExtrinsics e;
@@ -549,6 +564,19 @@ std::optional<FramePacket> VioEstimator::RunFrontend(int64_t t_ns, const cv::Mat
     timing_.Add("total", work.ElapsedSeconds());
     return std::nullopt;
   }
+  // A frozen camera repeats its last images with new stamps: tracking them would tell the
+  // estimator the vehicle stood still. Skipped, the IMU bridges the time as for a dropped frame
+  // (and a long freeze becomes a frame-time jump, a lost interval).
+  if (!prev_left_.empty() && SameImage(left, prev_left_) && SameImage(right, prev_right_) &&
+      HasTexture(left)) {
+    if (frozen_frames_++ % 20 == 0)
+      spdlog::warn("vio: skipping frame at {} ns: identical to the previous frame (frozen camera)",
+                   t_ns);
+    timing_.Add("total", work.ElapsedSeconds());
+    return std::nullopt;
+  }
+  left.copyTo(prev_left_);
+  right.copyTo(prev_right_);
   // The backend's feedback after packet n - lag (waiting for it when the backend is behind).
   const uint64_t lag = static_cast<uint64_t>(options_.feedback_lag_frames);
   double wait_s = 0;

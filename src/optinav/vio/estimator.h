@@ -190,6 +190,9 @@ class VioEstimator {
   TimingStats& timing() { return timing_; }
   int initializations() const { return initializations_; }
   const std::string& last_init_kind() const { return last_init_kind_; }
+  // Frames skipped because both images were identical to the previous frame's: a camera (or
+  // driver) that repeats its last buffer. The IMU bridges them like a dropped frame.
+  int frozen_frames() const { return frozen_frames_; }
 
  private:
   bool TryInitialize(const FramePacket& packet);
@@ -220,6 +223,8 @@ class VioEstimator {
   std::deque<TimedImuSample> imu_;
   std::vector<TimedImuSample> imu_for_backend_;  // accepted since the last packet
   std::optional<int64_t> prev_frame_ns_;
+  cv::Mat prev_left_, prev_right_;  // the previous frame's images (frozen-camera check)
+  int frozen_frames_ = 0;
   BackendFeedback feedback_;  // the latest taken from the mailbox (rejected ids not kept)
   uint64_t packets_ = 0;      // packets made
   // Backend side.

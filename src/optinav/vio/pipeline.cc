@@ -191,6 +191,7 @@ VioRunResult RunOnPairs(const camera::StereoRig& rig, const Rigid3d& body_from_c
   estimator.Finish();
   result.lost = estimator.lost_intervals();
   result.initializations = estimator.initializations();
+  result.frozen_frames = estimator.frozen_frames();
   if (const GnssFusion* gnss = estimator.gnss()) {
     result.gnss_rejected = gnss->rejected();
     result.gnss_stats = gnss->stats();

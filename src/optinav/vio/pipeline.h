@@ -63,6 +63,7 @@ struct VioRunResult {
   std::map<std::string, TimingSummary> timing;
   size_t frames_total = 0, frames_processed = 0, frames_unpaired = 0;
   int initializations = 0;
+  int frozen_frames = 0;  // skipped: identical to the previous frame (VioEstimator::frozen_frames)
   std::string first_init_kind;
   Rigid3d body_from_cam0;
   // Loop closure (VioOptions::loop_closure): `estimates` are corrected by the closed loops;
