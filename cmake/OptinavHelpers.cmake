@@ -10,6 +10,14 @@ function(optinav_add_library)
   target_include_directories(optinav_${ARG_NAME} PUBLIC ${CMAKE_SOURCE_DIR}/src)
   target_link_libraries(optinav_${ARG_NAME} PUBLIC ${ARG_DEPS} ${ARG_PUBLIC_DEPS}
                         PRIVATE ${ARG_PRIVATE_DEPS})
+  # The Python module links the libraries into a shared object. Without semantic interposition
+  # (no other library replaces ours at load time) -fPIC code inlines and calls as -fPIE code does.
+  if(OPTINAV_WITH_PYTHON)
+    set_target_properties(optinav_${ARG_NAME} PROPERTIES POSITION_INDEPENDENT_CODE ON)
+    if(CMAKE_CXX_COMPILER_ID STREQUAL "GNU")
+      target_compile_options(optinav_${ARG_NAME} PRIVATE -fno-semantic-interposition)
+    endif()
+  endif()
 endfunction()
 
 # optinav_add_test(NAME name LAYER layer SRCS ... DEPS ...): registers <layer>/<name> with CTest.

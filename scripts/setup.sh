@@ -22,6 +22,7 @@ done
 
 PACKAGES=(
   build-essential cmake pkg-config git ca-certificates python3
+  pybind11-dev python3-dev python3-numpy python3-pytest
   libeigen3-dev libceres-dev libopencv-dev libgdal-dev gdal-bin libproj-dev proj-bin
   libyaml-cpp-dev libspdlog-dev libfmt-dev libcli11-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev libsqlite3-dev sqlite3 libtbb-dev libpng-dev

@@ -64,8 +64,11 @@ nlohmann::json StatisticsJson(const EvaluationSettings& st, const EvaluationOutc
                       {"matched", out.synced.ref.size()},
                       {"max_pairs", out.synced.max_pairs},
                       {"by_index", out.synced.by_index}};
-  j["ref"] = st.ref_path;
-  j["est"] = st.est_path;
+  const auto label = [](const std::string& path) {
+    return path.empty() ? nlohmann::json(nullptr) : nlohmann::json(path);
+  };
+  j["ref"] = label(st.ref_path);
+  j["est"] = label(st.est_path);
   if (st.metric == EvaluationSettings::Metric::kRpe) {
     j["delta"] = st.rpe.delta;
     j["delta_unit"] = eval::DeltaUnitName(st.rpe.unit);
@@ -109,9 +112,14 @@ std::string EvaluationSettings::Check() const {
 
 EvaluationOutcome RunEvaluation(const EvaluationSettings& st) {
   if (const std::string m = st.Check(); !m.empty()) throw Error(m);
-  EvaluationOutcome out;
   Trajectory ref = io::ReadTrajectory(st.ref_path, st.ref_read);
   Trajectory est = io::ReadTrajectory(st.est_path, st.est_read);
+  return RunEvaluation(st, std::move(ref), std::move(est));
+}
+
+EvaluationOutcome RunEvaluation(const EvaluationSettings& st, Trajectory ref, Trajectory est) {
+  if (const std::string m = st.Check(); !m.empty()) throw Error(m);
+  EvaluationOutcome out;
   out.ref_poses = ref.size();
   out.est_poses = est.size();
   out.synced = eval::Synchronize(std::move(ref), std::move(est), st.association);

@@ -41,6 +41,11 @@ struct EvaluationOutcome {
 // (naming the file and line). Writes the optional outputs atomically.
 EvaluationOutcome RunEvaluation(const EvaluationSettings& settings);
 
+// The same on trajectories already in memory (the Python module's arrays): ref_path and est_path
+// only label them ("ref" and "est" of the JSON, null when empty; the table and the plot); the
+// read options are not used.
+EvaluationOutcome RunEvaluation(const EvaluationSettings& settings, Trajectory ref, Trajectory est);
+
 // The human-readable table (as evo prints it).
 std::string FormatEvaluationTable(const EvaluationSettings& settings,
                                   const EvaluationOutcome& outcome);

@@ -96,6 +96,26 @@ TEST(Evaluation, ApeAssociatesTumStamps) {
   EXPECT_NEAR(o.series.stats.rmse, 0.013470, 1e-6);
 }
 
+TEST(Evaluation, InMemoryTrajectoriesGiveTheFileFigures) {
+  // The Python module's path: trajectories already read; the paths only label the JSON.
+  EvaluationSettings st;
+  st.ref_path = Data("freiburg1_xyz-groundtruth.txt");
+  st.est_path = Data("freiburg1_xyz-rgbdslam.txt");
+  st.alignment.mode = eval::AlignMode::kSe3;
+  const EvaluationOutcome from_files = RunEvaluation(st);
+  EvaluationSettings unlabeled = st;
+  unlabeled.ref_path.clear();
+  unlabeled.est_path.clear();
+  const EvaluationOutcome in_memory =
+      RunEvaluation(unlabeled, io::ReadTrajectory(st.ref_path), io::ReadTrajectory(st.est_path));
+  EXPECT_TRUE(in_memory.json["ref"].is_null());
+  EXPECT_TRUE(in_memory.json["est"].is_null());
+  nlohmann::json j = in_memory.json;
+  j["ref"] = st.ref_path;
+  j["est"] = st.est_path;
+  EXPECT_EQ(j, from_files.json);
+}
+
 TEST(Evaluation, CheckNamesTheFlag) {
   EvaluationSettings st;
   st.ref_path = st.est_path = Data("KITTI_00_gt.txt");

@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "optinav/io/euroc_dataset.h"
 #include "optinav/io/text_parse.h"
@@ -72,6 +73,12 @@ camera::PinholeCamera LoadCamera(const std::string& path) {
   }
 }
 
+cv::Mat ReadGreyFrame(const std::string& path) {
+  cv::Mat frame = cv::imread(path, cv::IMREAD_GRAYSCALE);
+  if (frame.empty()) throw Error("cannot read image (missing or not an image)", {.file = path});
+  return frame;
+}
+
 }  // namespace
 
 std::optional<LocateMethod> ParseLocateMethod(const std::string& name) {
@@ -97,21 +104,32 @@ std::string MapLocateOptions::Check() const {
 MapLocateRun::MapLocateRun(const MapLocateOptions& options) : options_(options) {
   if (const std::string msg = options.Check(); !msg.empty()) throw Error(msg);
   db_ = std::make_unique<maploc::MapDatabase>(maploc::LoadMapDatabase(options.map_path));
+  MakeLocator(options.hfov_deg);
+  prior_ = PriorOf(options);
+}
+
+void MapLocateRun::MakeLocator(double hfov_deg) {
   maploc::LocateOptions lo;
-  lo.ortho_path = options.ortho_path;
-  lo.hfov_deg = options.hfov_deg;
-  if (!options.camera_path.empty()) lo.camera = LoadCamera(options.camera_path);
+  lo.ortho_path = options_.ortho_path;
+  lo.hfov_deg = hfov_deg;
+  if (!options_.camera_path.empty()) lo.camera = LoadCamera(options_.camera_path);
+  locator_.reset();  // it refers to db_; the new one replaces it
   locator_ = std::make_unique<maploc::Locator>(*db_, lo);
-  prior_.radius_m = options.radius_m;
-  prior_.heading_deg = options.heading_deg;
-  prior_.heading_sigma_deg = options.heading_sigma_deg;
-  prior_.altitude_m = options.altitude_m;
-  prior_.roll_deg = options.roll_deg;
-  prior_.pitch_deg = options.pitch_deg;
-  prior_.attitude_sigma_deg = options.attitude_sigma_deg;
+  options_.hfov_deg = hfov_deg;
+}
+
+Prior MapLocateRun::PriorOf(const MapLocateOptions& options) const {
+  Prior prior;
+  prior.radius_m = options.radius_m;
+  prior.heading_deg = options.heading_deg;
+  prior.heading_sigma_deg = options.heading_sigma_deg;
+  prior.altitude_m = options.altitude_m;
+  prior.roll_deg = options.roll_deg;
+  prior.pitch_deg = options.pitch_deg;
+  prior.attitude_sigma_deg = options.attitude_sigma_deg;
   if (options.prior) {
-    prior_.position = options.prior;
-    CheckInsideMap(*prior_.position, options.radius_m, "--prior");
+    prior.position = options.prior;
+    CheckInsideMap(*prior.position, options.radius_m, "--prior");
   }
   if (options.last_fix) {
     std::vector<double> bearings = {options.bearing_deg};
@@ -120,12 +138,13 @@ MapLocateRun::MapLocateRun(const MapLocateOptions& options) : options_(options) 
       bearings.push_back(options.bearing_deg - d);
     }
     for (double b : bearings) {
-      prior_.extra_centres.push_back(
+      prior.extra_centres.push_back(
           geo::GeodesicDirect(*options.last_fix, b, options.max_travel_m));
     }
-    if (!prior_.position) prior_.position = prior_.extra_centres.front();
-    CheckInsideMap(*prior_.position, options.radius_m, "--last-fix");
+    if (!prior.position) prior.position = prior.extra_centres.front();
+    CheckInsideMap(*prior.position, options.radius_m, "--last-fix");
   }
+  return prior;
 }
 
 MapLocateRun::~MapLocateRun() = default;
@@ -142,10 +161,11 @@ void MapLocateRun::CheckInsideMap(const geo::LatLon& centre, double radius_m,
   }
 }
 
-LocateResult MapLocateRun::LocateFrame(const std::string& image_path, const Prior& prior) {
-  const cv::Mat frame = cv::imread(image_path, cv::IMREAD_GRAYSCALE);
-  if (frame.empty())
-    throw Error("cannot read image (missing or not an image)", {.file = image_path});
+LocateResult MapLocateRun::LocatePath(const std::string& image_path, const Prior& prior) {
+  return LocateGrey(ReadGreyFrame(image_path), prior);
+}
+
+LocateResult MapLocateRun::LocateGrey(const cv::Mat& frame, const Prior& prior) {
   switch (options_.method) {
     case LocateMethod::kFeatures:
       return locator_->LocateByFeatures(frame, prior);
@@ -158,7 +178,31 @@ LocateResult MapLocateRun::LocateFrame(const std::string& image_path, const Prio
 }
 
 LocateResult MapLocateRun::LocateImage(const std::string& image_path) {
-  return LocateFrame(image_path, prior_);
+  return LocatePath(image_path, prior_);
+}
+
+LocateResult MapLocateRun::LocateImage(const std::string& image_path,
+                                       const MapLocateOptions& frame_options) {
+  return Locate(ReadGreyFrame(image_path), frame_options);
+}
+
+LocateResult MapLocateRun::Locate(const cv::Mat& frame, const MapLocateOptions& frame_options) {
+  MapLocateOptions o = frame_options;
+  o.map_path = options_.map_path;
+  o.ortho_path = options_.ortho_path;
+  o.camera_path = options_.camera_path;
+  o.method = options_.method;
+  if (const std::string msg = o.Check(); !msg.empty()) throw Error(msg);
+  if (frame.empty()) throw Error("empty frame");
+  if (frame.depth() != CV_8U || (frame.channels() != 1 && frame.channels() != 3)) {
+    throw Error(fmt::format("frame must be 8-bit grey or BGR, got depth {} with {} channels",
+                            frame.depth(), frame.channels()));
+  }
+  const Prior prior = PriorOf(o);
+  if (o.hfov_deg != options_.hfov_deg) MakeLocator(o.hfov_deg);
+  cv::Mat grey = frame;
+  if (frame.channels() == 3) cv::cvtColor(frame, grey, cv::COLOR_BGR2GRAY);
+  return LocateGrey(grey, prior);
 }
 
 namespace {
@@ -236,7 +280,7 @@ void MapLocateRun::LocateList(const std::string& list_path,
       Prior p = prior_;
       ApplyRow(f, *index, ctx, &p);
       if (p.position) CheckInsideMap(*p.position, p.radius_m, "prior_lat,prior_lon");
-      j = LocateResultJson(LocateFrame(image, p));
+      j = LocateResultJson(LocatePath(image, p));
     } catch (const Error& e) {
       j = {{"localized", false}, {"reason", std::string("error: ") + e.what()}};
     } catch (const std::exception& e) {  // OpenCV or the library: this frame fails, not the run

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
 
 #include "optinav/geo/geo.h"
 #include "optinav/maploc/locator.h"
@@ -60,6 +61,18 @@ class MapLocateRun {
   // the options. Throws Error when the image cannot be read; an unlocalized frame is a result.
   maploc::LocateResult LocateImage(const std::string& image_path);
 
+  // Localizes a frame held in memory (8-bit grey, or BGR) with the per-frame fields of
+  // `frame_options` in place of the run's: prior, radius, last fix and prediction, heading,
+  // altitude, attitude and hfov_deg (a different field of view rebuilds the locator); the map,
+  // orthophoto, camera file and method stay the run's. For callers that hold frames as arrays
+  // (the Python module). Throws Error on invalid options (Check()) or a prior outside the map.
+  maploc::LocateResult Locate(const cv::Mat& frame, const MapLocateOptions& frame_options);
+  // The same for the frame in `image_path`, read as LocateImage reads it.
+  maploc::LocateResult LocateImage(const std::string& image_path,
+                                   const MapLocateOptions& frame_options);
+
+  const maploc::MapDatabase& database() const { return *db_; }
+
   // Localizes each frame listed in the csv `list_path` and hands `emit` one JSON object per frame,
   // in order: the LocateResultJson plus "image", or {localized: false, reason: "error: ..."}
   // when that row or its frame is bad. Columns are found by the header, in any order: `image`
@@ -71,7 +84,11 @@ class MapLocateRun {
                   const std::function<void(const nlohmann::json&)>& emit);
 
  private:
-  maploc::LocateResult LocateFrame(const std::string& image_path, const maploc::Prior& prior);
+  maploc::LocateResult LocatePath(const std::string& image_path, const maploc::Prior& prior);
+  maploc::LocateResult LocateGrey(const cv::Mat& frame, const maploc::Prior& prior);
+  // The prior of the per-frame fields of `o`, its centres checked against the map extent.
+  maploc::Prior PriorOf(const MapLocateOptions& o) const;
+  void MakeLocator(double hfov_deg);
   void CheckInsideMap(const geo::LatLon& centre, double radius_m, const std::string& field) const;
 
   MapLocateOptions options_;

@@ -6,6 +6,7 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "optinav/app/map_info.h"
 #include "optinav/app/map_render.h"
@@ -87,6 +88,39 @@ TEST_F(Aero1Locate, RenderedFrameWithAPriorIsLocalizedWithinAMetre) {
   EXPECT_EQ(j["inliers"].get<int>(), r.inliers);
   EXPECT_EQ(j["times_ms"].size(), 3u);
   EXPECT_NE(LocateResultText(r).find("localized by features"), std::string::npos);
+}
+
+TEST_F(Aero1Locate, FrameInMemoryWithPerFrameOptionsEqualsTheFileRun) {
+  MapLocateOptions o = Options();
+  o.prior = geo::GeodesicDirect(Truth(), 70, 15);
+  const maploc::LocateResult from_file = MapLocateRun(o).LocateImage(Frame());
+  ASSERT_TRUE(from_file.localized) << from_file.reason;
+  // One run without a prior; the frame's options bring it (as the Python module does).
+  MapLocateRun run(Options());
+  const cv::Mat grey = cv::imread(Frame(), cv::IMREAD_GRAYSCALE);
+  const maploc::LocateResult r = run.Locate(grey, o);
+  ASSERT_TRUE(r.localized) << r.reason;
+  EXPECT_DOUBLE_EQ(r.latlon.lat_deg, from_file.latlon.lat_deg);
+  EXPECT_DOUBLE_EQ(r.latlon.lon_deg, from_file.latlon.lon_deg);
+  EXPECT_EQ(r.inliers, from_file.inliers);
+  // A colour frame (BGR) is converted as imread converts it.
+  cv::Mat bgr;
+  cv::cvtColor(grey, bgr, cv::COLOR_GRAY2BGR);
+  EXPECT_DOUBLE_EQ(run.Locate(bgr, o).latlon.lat_deg, from_file.latlon.lat_deg);
+  // Another field of view rebuilds the locator; the map's own again gives the first result.
+  MapLocateOptions wide = o;
+  wide.hfov_deg = 90;
+  EXPECT_NO_THROW(run.Locate(grey, wide));
+  EXPECT_DOUBLE_EQ(run.Locate(grey, o).latlon.lat_deg, from_file.latlon.lat_deg);
+
+  MapLocateOptions bad = o;
+  bad.altitude_m = -1;
+  EXPECT_ERROR(run.Locate(grey, bad), {}, "--altitude must be positive");
+  bad = o;
+  bad.prior = geo::LatLon{10, 10};
+  EXPECT_ERROR(run.Locate(grey, bad), {.field = "--prior"}, "lies outside the map extent");
+  EXPECT_ERROR(run.Locate(cv::Mat(), o), {}, "empty frame");
+  EXPECT_ERROR(run.Locate(cv::Mat(8, 8, CV_32F), o), {}, "8-bit grey or BGR");
 }
 
 TEST_F(Aero1Locate, PredictionFromTheLastFixAlongTheBearing) {

@@ -113,6 +113,29 @@ Trajectory ReadPoseLines(const std::string& path, const PoseLineFormat& lf) {
   return traj;
 }
 
+// Appends a KITTI pose after checking its rotation block.
+void AddKittiPose(const Eigen::Matrix<double, 3, 4>& m, ErrorContext* ctx, Trajectory* traj) {
+  const Eigen::Matrix3d r = m.leftCols<3>();
+  if (std::abs(r.determinant()) < 1e-6) {
+    ctx->field = "rotation";
+    throw Error("rotation block is singular", *ctx);
+  }
+  // Kept as written (evo does the same); only a singular block is rejected above.
+  traj->AddMatrix(r, m.col(3));
+}
+
+// Throws Error naming the row and the field when one of the `n` values is not finite.
+void CheckFiniteRow(const double* v, int n, const char* const* field_names,
+                    const ErrorContext& ctx) {
+  for (int k = 0; k < n; ++k) {
+    if (!std::isfinite(v[k])) {
+      ErrorContext c = ctx;
+      c.field = field_names ? field_names[k] : fmt::format("r{}c{}", k / 4, k % 4);
+      throw Error(fmt::format("not a finite number: {}", v[k]), c);
+    }
+  }
+}
+
 Trajectory ReadKitti(const std::string& path, const std::string& times_path) {
   const MappedFile file(path);
   const std::string_view text = file.view();
@@ -133,13 +156,7 @@ Trajectory ReadKitti(const std::string& path, const std::string& times_path) {
       ctx.field = fmt::format("r{}c{}", k / 4, k % 4);
       m(k / 4, k % 4) = ParseFiniteDouble(f[k], ctx);
     }
-    const Eigen::Matrix3d r = m.leftCols<3>();
-    if (std::abs(r.determinant()) < 1e-6) {
-      ctx.field = "rotation";
-      throw Error("rotation block is singular", ctx);
-    }
-    // Kept as written (evo does the same); only a singular block is rejected above.
-    traj.AddMatrix(r, m.col(3));
+    AddKittiPose(m, &ctx, &traj);
   }
   if (times_path.empty()) return traj;
 
@@ -263,6 +280,59 @@ Trajectory ReadTrajectory(const std::string& path, const TrajectoryReadOptions& 
   if (format != TrajectoryFormat::kKitti && !options.kitti_times_path.empty()) {
     throw Error("a times file only applies to KITTI trajectories", {.file = path});
   }
+  return traj;
+}
+
+Trajectory TrajectoryFromTumRows(const double* rows, size_t n, const std::string& source) {
+  if (n == 0) throw Error("no poses (0 rows)", {.file = source});
+  Trajectory traj;
+  traj.Reserve(n, true);
+  size_t repeats = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const double* v = rows + 8 * i;
+    const ErrorContext ctx{.file = source, .line = static_cast<int64_t>(i + 1)};
+    CheckFiniteRow(v, 8, kTumFields, ctx);
+    ErrorContext tc = ctx;
+    tc.field = kTumFields[0];
+    // Shortest round-trip text: the decimal a TUM file held when the array was loaded from one.
+    const int64_t t = ParseSecondsToNs(fmt::format("{}", v[0]), tc);
+    AddChecked(
+        t, v[7], v[4], v[5], v[6], Eigen::Vector3d(v[1], v[2], v[3]), "qx qy qz qw", kTumFields[0],
+        [&] { return ctx; }, &traj, &repeats);
+  }
+  if (repeats > 0) spdlog::warn("{}: {} repeated timestamp(s)", source, repeats);
+  return traj;
+}
+
+Trajectory TrajectoryFromKittiRows(const double* rows, size_t n, const std::string& source) {
+  if (n == 0) throw Error("no poses (0 rows)", {.file = source});
+  Trajectory traj;
+  traj.Reserve(n, false);
+  for (size_t i = 0; i < n; ++i) {
+    ErrorContext ctx{.file = source, .line = static_cast<int64_t>(i + 1)};
+    CheckFiniteRow(rows + 12 * i, 12, nullptr, ctx);
+    const Eigen::Matrix<double, 3, 4> m =
+        Eigen::Map<const Eigen::Matrix<double, 3, 4, Eigen::RowMajor>>(rows + 12 * i);
+    AddKittiPose(m, &ctx, &traj);
+  }
+  return traj;
+}
+
+Trajectory TrajectoryFromEurocRows(const int64_t* t_ns, const double* rows, size_t n,
+                                   const std::string& source) {
+  if (n == 0) throw Error("no poses (0 rows)", {.file = source});
+  Trajectory traj;
+  traj.Reserve(n, true);
+  size_t repeats = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const double* v = rows + 7 * i;
+    const ErrorContext ctx{.file = source, .line = static_cast<int64_t>(i + 1)};
+    CheckFiniteRow(v, 7, kEurocFields + 1, ctx);
+    AddChecked(
+        t_ns[i], v[3], v[4], v[5], v[6], Eigen::Vector3d(v[0], v[1], v[2]), "qw qx qy qz",
+        kEurocFields[0], [&] { return ctx; }, &traj, &repeats);
+  }
+  if (repeats > 0) spdlog::warn("{}: {} repeated timestamp(s)", source, repeats);
   return traj;
 }
 

@@ -45,4 +45,18 @@ void WriteTrajectory(const std::string& path, const Trajectory& trajectory,
                      TrajectoryFormat format);
 void WriteKittiTimes(const std::string& path, const Trajectory& trajectory);
 
+// Trajectories held in memory as rows of numbers (the Python module's arrays), checked as the
+// readers check file lines: finite values, a non-zero quaternion, timestamps that do not go
+// backwards (repeats are accepted with a warning), a non-singular KITTI rotation, at least one
+// row. Errors name `source` as the file and the 1-based row as the line ("ref array:5: ...").
+//   TUM rows    n x 8, row-major: t [s] x y z qx qy qz qw. The time goes to nanoseconds through
+//               its shortest decimal text, so a row loaded from a TUM file gets the stamp the
+//               file reader gives that line.
+//   KITTI rows  n x 12, row-major: the 3x4 world_from_camera, row-major; no timestamps.
+//   EuRoC rows  t_ns[i] and n x 7 values px py pz qw qx qy qz.
+Trajectory TrajectoryFromTumRows(const double* rows, size_t n, const std::string& source);
+Trajectory TrajectoryFromKittiRows(const double* rows, size_t n, const std::string& source);
+Trajectory TrajectoryFromEurocRows(const int64_t* t_ns, const double* rows, size_t n,
+                                   const std::string& source);
+
 }  // namespace optinav::io

@@ -1,5 +1,6 @@
 #include "optinav/io/trajectory_io.h"
 
+#include <cmath>
 #include <fstream>
 #include <sstream>
 
@@ -155,6 +156,58 @@ TEST(ReadTrajectory, BadInputIsAClearError) {
   const auto dup = testing::WriteFile(dir / "dup.txt", "1.0 0 0 0 0 0 0 1\n1.0 1 0 0 0 0 0 1\n");
   EXPECT_EQ(ReadTrajectory(dup).size(), 2u);
   EXPECT_FALSE(ParseTrajectoryFormat("bag").has_value());
+}
+
+// The rows of a file, as numbers in memory, give the file reader's trajectory exactly.
+TEST(TrajectoryFromRows, EqualsTheFileReaderOnTheSameValues) {
+  // freiburg1_xyz-rgbdslam.txt lines 2-3 as doubles (what numpy.loadtxt gives).
+  const double tum[16] = {
+      1305031102.160407, 1.344379, 0.627206, 1.661754, 0.658249, 0.611043, -0.294444, -0.326553,
+      1305031102.194330, 1.343641, 0.626458, 1.652408, 0.657327, 0.613265, -0.295150, -0.323593};
+  const Trajectory rows = TrajectoryFromTumRows(tum, 2, "est array");
+  const Trajectory file = ReadTrajectory(Traj("freiburg1_xyz-rgbdslam.txt"));
+  ASSERT_EQ(rows.size(), 2u);
+  for (size_t i = 0; i < 2; ++i) {
+    EXPECT_EQ(rows.t_ns[i], file.t_ns[i]);
+    EXPECT_EQ(rows.positions[i], file.positions[i]);
+    EXPECT_EQ(rows.rotations[i], file.rotations[i]);
+  }
+  EXPECT_EQ(rows.t_ns[1], 1305031102194330000);
+
+  // KITTI_00_ORB.txt line 1 (rotations are kept as written).
+  const Trajectory kitti_file = ReadTrajectory(Traj("KITTI_00_ORB.txt"));
+  double kitti[12];
+  for (int k = 0; k < 12; ++k) {
+    kitti[k] = k % 4 == 3 ? kitti_file.positions[0][k / 4] : kitti_file.rotations[0](k / 4, k % 4);
+  }
+  const Trajectory kitti_rows = TrajectoryFromKittiRows(kitti, 1, "ref array");
+  EXPECT_FALSE(kitti_rows.has_timestamps());
+  EXPECT_EQ(kitti_rows.rotations[0], kitti_file.rotations[0]);
+  EXPECT_EQ(kitti_rows.positions[0], kitti_file.positions[0]);
+
+  const int64_t t_ns[1] = {1403715524907143168};
+  const double euroc[7] = {0.515356, 1.996773, 0.971104, 0.161996, 0.789985, -0.205376, 0.554528};
+  const Trajectory e = TrajectoryFromEurocRows(t_ns, euroc, 1, "gt");
+  const Trajectory e_file = ReadTrajectory(Traj("V102_groundtruth.csv"));
+  EXPECT_EQ(e.t_ns[0], e_file.t_ns[0]);
+  EXPECT_EQ(e.rotations[0], e_file.rotations[0]);
+}
+
+TEST(TrajectoryFromRows, BadRowsNameTheRowAndField) {
+  double tum[16] = {2, 0, 0, 0, 0, 0, 0, 1, 1, 0, 0, 0, 0, 0, 0, 1};
+  EXPECT_ERROR(TrajectoryFromTumRows(tum, 2, "est array"),
+               {.file = "est array", .line = 2, .field = "t"}, "goes backwards");
+  tum[8] = 3;
+  tum[15] = 0;
+  EXPECT_ERROR(TrajectoryFromTumRows(tum, 2, "est array"),
+               {.file = "est array", .line = 2, .field = "qx qy qz qw"}, "zero norm");
+  tum[2] = std::nan("");
+  EXPECT_ERROR(TrajectoryFromTumRows(tum, 2, "est array"),
+               {.file = "est array", .line = 1, .field = "y"}, "not a finite number");
+  EXPECT_ERROR(TrajectoryFromTumRows(tum, 0, "est array"), {.file = "est array"}, "no poses");
+  const double kitti[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0};
+  EXPECT_ERROR(TrajectoryFromKittiRows(kitti, 1, "ref array"),
+               {.file = "ref array", .line = 1, .field = "rotation"}, "singular");
 }
 
 }  // namespace
