@@ -556,10 +556,10 @@ std::vector<PlannedTask> GnssBenchTasks(const GnssBenchOptions& options) {
 }
 
 SlurmResources GnssBenchTaskResources(const GnssBenchOptions& o) {
-  // Measured on the 2-core machine (bench/RESULTS.md, "Slurm"): the drone camera's 752x480
-  // frames at 20 Hz; a task renders its sequence when it is the first to need it (~0.9 s per
-  // frame at scale 1) and runs the unthreaded VIO (~0.12 s per frame); peak memory ~0.8 GB at
-  // scale 1. Memory twice the measurement, time three times, 10 min at least.
+  // Measured on the 2-core VM (bench/RESULTS.md, "Slurm", 2026-11-26), the drone camera's
+  // 752x480 (0.361 Mpx) at 20 Hz, 20 s of the room: rendering 127 ms per frame (done by the first
+  // task that needs the sequence), the unthreaded VIO 61 ms; peak memory 121 MB. Per frame
+  // 0.01 s + 0.52 s/Mpx covers both. Asked: 512 MB + 256 MB/Mpx; time 3x, 10 min at least.
   const double megapixels = 0.361 * o.scale * o.scale;
   double seconds = 0;
   for (GnssBenchSequence s : o.sequences)
@@ -567,15 +567,16 @@ SlurmResources GnssBenchTaskResources(const GnssBenchOptions& o) {
                                 : s == GnssBenchSequence::kRoom ? 100.0
                                                                 : 200.0);
   const double frames = seconds * 20;
+  const double estimate_s = frames * (0.01 + 0.52 * megapixels);
   SlurmResources r;
   r.cpus_per_task = 1;
-  r.mem_mb = static_cast<int>(std::ceil(2.0 * (300 + 1400 * megapixels) / 64) * 64);
-  const double s_per_frame = 0.01 + 2.8 * megapixels;
-  r.time_min = std::max(10, static_cast<int>(std::ceil(3.0 * frames * s_per_frame / 60)));
+  r.mem_mb = static_cast<int>(std::ceil((512 + 256 * megapixels) / 64) * 64);
+  r.time_min = std::max(10, static_cast<int>(std::ceil(3 * estimate_s / 60)));
   r.derivation = fmt::format(
-      "1 CPU (unthreaded VIO); memory 2 x (300 MB + 1400 MB/Mpx) at {:.3f} Mpx per image; time "
-      "3 x {:.0f} frames x (0.01 + 2.8 s/Mpx) per frame (rendering and VIO), 10 min at least",
-      megapixels, frames);
+      "1 CPU (unthreaded VIO); memory 512 MB + 256 MB/Mpx (measured peak ~120 MB); time 3 x {:.0f} "
+      "frames x (0.01 + 0.52 s/Mpx at {:.3f} Mpx) = 3 x {:.0f} s (rendering and VIO), 10 min at "
+      "least",
+      frames, megapixels, estimate_s);
   return r;
 }
 

@@ -21,10 +21,17 @@ std::string Absolute(const std::string& path) {
   return IsVsi(path) ? path : fs::absolute(path).lexically_normal().string();
 }
 
-// Measured (bench/RESULTS.md, "Slurm"): ORB on a 1 m/px orthophoto, 346 px tiles (300 m, 60 deg,
-// 640 px frames), 1024 features per tile: CPU seconds per tile on one thread of the 2-core VM.
-constexpr double kCpuSecondsPerTile = 0.05;
+// Measured (bench/RESULTS.md, "Slurm", 2026-11-26): NAIP 2012 resampled to 1 m/px, 346 px tiles
+// (300 m, 60 deg, 640 px frames), ORB, 279 features per tile: 5.0 ms of CPU per tile (read,
+// extract, write). Planned with twice that, for sharper imagery that fills the 1,024 features.
+constexpr double kCpuSecondsPerTile = 0.010;
 constexpr double kTaskTargetS = 20 * 60;
+constexpr double kTaskFeatureMb = 2000;  // features a task holds before it writes its part
+
+// Bytes per feature held: keypoint (16) + descriptor, twice (the tile and the database's copy).
+double FeatureBytes(features::FeatureType type) {
+  return 2 * (16 + (type == features::FeatureType::kSift ? 512 : 64));
+}
 
 }  // namespace
 
@@ -68,17 +75,20 @@ std::string ResolveOrthoInputs(const std::vector<std::string>& orthos,
 int DefaultMapShards(const maploc::MapDatabase& grid) {
   const int threads = std::max(1, grid.options.threads);
   const double work_s = grid.tiles.size() * kCpuSecondsPerTile / threads;
-  return std::clamp(static_cast<int>(std::ceil(work_s / kTaskTargetS)), 1, 1000);
+  const double features_mb =
+      grid.tiles.size() * grid.options.max_features * FeatureBytes(grid.feature_type) / 1e6;
+  const double shards = std::max(work_s / kTaskTargetS, features_mb / kTaskFeatureMb);
+  return std::clamp(static_cast<int>(std::ceil(shards)), 1,
+                    std::min(1000, static_cast<int>(grid.tiles.size())));
 }
 
 SlurmResources MapBuildTaskResources(const maploc::MapDatabase& grid, int shards) {
   const int threads = std::max(1, grid.options.threads);
   const double tiles = std::ceil(static_cast<double>(grid.tiles.size()) / shards);
-  // Features held until the part is written: keypoint (16 B) + descriptor (32 B ORB/BRISK
-  // (64 B), 512 B SIFT), twice for the database's copy; each thread's tile images; GDAL's block
-  // cache, capped at 256 MB by the script (GDAL_CACHEMAX).
-  const double desc = grid.feature_type == features::FeatureType::kSift ? 512 : 64;
-  const double features_mb = 2 * tiles * grid.options.max_features * (16 + desc) / 1e6;
+  // Features held until the part is written (FeatureBytes, at the max_features cap); each
+  // thread's tile images; GDAL's block cache, capped at 256 MB by the script (GDAL_CACHEMAX).
+  const double features_mb =
+      tiles * grid.options.max_features * FeatureBytes(grid.feature_type) / 1e6;
   const double tile_side = grid.tile_px * grid.map_gsd_m / grid.feature_gsd_m;
   const double images_mb =
       threads * 8 * grid.tile_px * grid.tile_px / 1e6 + threads * 4 * tile_side * tile_side / 1e6;

@@ -492,22 +492,25 @@ std::vector<PlannedTask> WeatherBenchTasks(const WeatherBenchOptions& options) {
 }
 
 SlurmResources WeatherBenchTaskResources(const WeatherBenchOptions& o) {
-  // Measured on the 2-core machine (bench/RESULTS.md, "Slurm"): one task at 800x600 (scale 1)
-  // peaks at about 1.1 GB and needs ~3.4 s per frame-pair of rendering plus VIO wall; memory and
-  // time grow with the pixels. The car route has 2,540 frames at 30 ms when whole. Memory gets
-  // twice the measurement, the time limit three times (shared, slower nodes), 10 min at least.
+  // Measured on the 2-core VM (bench/RESULTS.md, "Slurm", 2026-11-26): per frame, rendering
+  // 12.7 ms at 200x150 and 116 ms at 800x600, the threaded VIO 16.3 ms and 81 ms: both about
+  // linear in the pixels, 0.018 s + 0.373 s/Mpx together. Peak memory 146-149 MB at every size
+  // (frames are streamed to disk). The whole car route is 3,509 frames. Asked: 512 MB (3x the
+  // peak) + 256 MB/Mpx; time 3x the estimate (slower or shared nodes), 10 min at least.
   const double megapixels = 0.48 * o.scale * o.scale;
-  const double frames = o.duration_s > 0 ? o.duration_s / 0.03 + 1 : 2540;
-  const double used_frames = o.max_frames > 0 ? std::min<double>(frames, o.max_frames) : frames;
+  const double frames = o.duration_s > 0 ? std::min(3509.0, o.duration_s / 0.03 + 1) : 3509;
+  const double vio_frames = o.max_frames > 0 ? std::min<double>(frames, o.max_frames) : frames;
+  const double estimate_s =
+      frames * (0.0058 + 0.2296 * megapixels) +
+      o.modes.size() * vio_frames * (0.0120 + 0.1433 * megapixels) / o.modes.size();
   SlurmResources r;
   r.cpus_per_task = 2;
-  r.mem_mb = static_cast<int>(std::ceil(2.0 * (300 + 1700 * megapixels) / 64) * 64);
-  const double s_per_frame = 0.02 + 7.0 * megapixels;
-  r.time_min = std::max(10, static_cast<int>(std::ceil(3.0 * used_frames * s_per_frame / 60)));
+  r.mem_mb = static_cast<int>(std::ceil((512 + 256 * megapixels) / 64) * 64);
+  r.time_min = std::max(10, static_cast<int>(std::ceil(3 * estimate_s / 60)));
   r.derivation = fmt::format(
-      "2 CPUs (threaded VIO); memory 2 x (300 MB + 1700 MB/Mpx) at {:.3f} Mpx per image; time 3 x "
-      "{:.0f} frames x (0.02 + 7.0 s/Mpx) per frame, 10 min at least",
-      megapixels, used_frames);
+      "2 CPUs (threaded VIO); memory 512 MB + 256 MB/Mpx (measured peak ~150 MB); time 3 x "
+      "{:.0f} frames x (0.018 + 0.373 s/Mpx at {:.3f} Mpx) = 3 x {:.0f} s, 10 min at least",
+      frames, megapixels, estimate_s);
   return r;
 }
 

@@ -135,14 +135,7 @@ int RunGnssBenchArgs(int argc, char** argv) {
 
 int RunGnssBench(int argc, char** argv) {
   // `--out DIR --reuse` alone in a planned folder: the merge, with the plan's options.
-  if (const auto merge = app::PlannedMergeArgs("bench gnss", {argv + 1, argv + argc})) {
-    std::vector<std::string> args = {argv[0]};
-    args.insert(args.end(), merge->begin(), merge->end());
-    std::vector<char*> ptrs;
-    for (std::string& a : args) ptrs.push_back(a.data());
-    return RunGnssBenchArgs(static_cast<int>(ptrs.size()), ptrs.data());
-  }
-  return RunGnssBenchArgs(argc, argv);
+  return cli::RunWithPlannedOptions("bench gnss", argc, argv, RunGnssBenchArgs);
 }
 
 }  // namespace

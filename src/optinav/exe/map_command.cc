@@ -103,10 +103,10 @@ int RunMerge(const std::vector<std::string>& parts, const std::string& plan_dir,
   if (parts.empty() == plan_dir.empty())
     throw cli::UsageError("give the parts or --plan-dir (one of them)", "--plan-dir");
   Timer t;
-  const maploc::MapDatabase db =
+  const maploc::MapMergeSummary m =
       maploc::MergeMapParts(parts.empty() ? app::PlannedMapParts(plan_dir) : parts, out);
-  std::printf("merged %s: %d x %d tiles, %zu features, %.1f s\n", out.c_str(), db.cols, db.rows,
-              db.FeatureCount(), t.ElapsedSeconds());
+  std::printf("merged %s: %d x %d = %zu tiles, %zu features, %.1f s\n", out.c_str(), m.db.cols,
+              m.db.rows, m.tiles, m.features, t.ElapsedSeconds());
   return 0;
 }
 

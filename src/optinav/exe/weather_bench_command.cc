@@ -102,14 +102,7 @@ int RunWeatherBenchArgs(int argc, char** argv) {
 
 int RunWeatherBench(int argc, char** argv) {
   // `--out DIR --reuse` alone in a planned folder: the merge, with the plan's options.
-  if (const auto merge = app::PlannedMergeArgs("bench weather", {argv + 1, argv + argc})) {
-    std::vector<std::string> args = {argv[0]};
-    args.insert(args.end(), merge->begin(), merge->end());
-    std::vector<char*> ptrs;
-    for (std::string& a : args) ptrs.push_back(a.data());
-    return RunWeatherBenchArgs(static_cast<int>(ptrs.size()), ptrs.data());
-  }
-  return RunWeatherBenchArgs(argc, argv);
+  return cli::RunWithPlannedOptions("bench weather", argc, argv, RunWeatherBenchArgs);
 }
 
 }  // namespace optinav

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <iterator>
 #include <map>
 #include <mutex>
@@ -124,8 +125,13 @@ MapBuildOptions OptionsFromJson(const nlohmann::json& j) {
   return o;
 }
 
-// Writes m.tiles (all of the grid, or a shard's: then meta `shard` says which).
-void WriteDatabase(const MapDatabase& m, const std::string& out_path, const MapShard& shard) {
+// Calls `emit` for every tile to write, in order.
+using TileSource = std::function<void(const std::function<void(const MapTile&)>& emit)>;
+
+// Writes m's metadata and the tiles `tiles` emits (default: m.tiles; all of the grid, or a
+// shard's: then meta `shard` says which). A source lets a merge stream parts through.
+void WriteDatabase(const MapDatabase& m, const std::string& out_path, const MapShard& shard,
+                   const TileSource& tiles = {}) {
   const std::string tmp = out_path + ".tmp";
   std::filesystem::remove(tmp);
   {
@@ -175,7 +181,7 @@ void WriteDatabase(const MapDatabase& m, const std::string& out_path, const MapS
       Stmt ins{db.Prepare(
           "INSERT INTO tiles VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)")};
       std::vector<float> kp;
-      for (const MapTile& t : m.tiles) {
+      const auto write = [&](const MapTile& t) {
         int k = 1;
         GeometryBytes geometry;
         auto bind_int = [&](int64_t v) {
@@ -218,6 +224,11 @@ void WriteDatabase(const MapDatabase& m, const std::string& out_path, const MapS
         sqlite3_bind_int64(ins.st, k++, CrcValue(Crc32(d.data, d_bytes)));
         db.Check(sqlite3_step(ins.st), "insert tile");
         sqlite3_reset(ins.st);
+      };
+      if (tiles) {
+        tiles(write);
+      } else {
+        for (const MapTile& t : m.tiles) write(t);
       }
     }
     // Written last: a database without it is incomplete.
@@ -619,16 +630,20 @@ MapDatabase ReadDatabase(const std::string& path, MapShard* part) {
 
 MapDatabase LoadMapDatabase(const std::string& path) { return ReadDatabase(path, nullptr); }
 
-MapDatabase MergeMapParts(const std::vector<std::string>& parts, const std::string& out_path) {
+MapMergeSummary MergeMapParts(const std::vector<std::string>& parts, const std::string& out_path) {
   if (parts.empty()) throw Error("no parts to merge", {.field = "PARTS"});
+  // Pass 1: every part verified (checksums), its metadata kept; the tiles are read again in pass
+  // 2, one part at a time, so the merge holds one part in memory, not the map.
   std::vector<std::pair<MapShard, MapDatabase>> read;
   for (const std::string& path : parts) {
     MapShard shard;
     MapDatabase m = ReadDatabase(path, &shard);
+    m.tiles.clear();
+    m.tiles.shrink_to_fit();
     read.emplace_back(shard, std::move(m));
   }
   const int count = read[0].first.count;
-  std::vector<const std::string*> by_index(count, nullptr);
+  std::vector<int> by_index(count, -1);  // shard -> position in parts
   const MapDatabase& ref = read[0].second;
   const std::string ref_options = OptionsToJson(ref.options).dump();
   for (size_t k = 0; k < read.size(); ++k) {
@@ -656,28 +671,35 @@ MapDatabase MergeMapParts(const std::vector<std::string>& parts, const std::stri
     if (m.ortho_path != ref.ortho_path)
       spdlog::warn("map merge: {} was built from {}, {} from {}; the merged map names the first",
                    parts[0], ref.ortho_path, parts[k], m.ortho_path);
-    if (by_index[shard.index]) {
+    if (by_index[shard.index] >= 0) {
       throw Error(fmt::format("shard {} is given twice (also {})", shard.ToString(),
-                              *by_index[shard.index]),
+                              parts[by_index[shard.index]]),
                   {.file = parts[k], .field = "shard"});
     }
-    by_index[shard.index] = &parts[k];
+    by_index[shard.index] = static_cast<int>(k);
   }
   std::string missing;
   for (int i = 0; i < count; ++i)
-    if (!by_index[i]) missing += (missing.empty() ? "" : ", ") + fmt::format("{}/{}", i, count);
+    if (by_index[i] < 0) missing += (missing.empty() ? "" : ", ") + fmt::format("{}/{}", i, count);
   if (!missing.empty())
     throw Error("shards missing: " + missing + " (every shard of the build is needed)",
                 {.field = "PARTS"});
-  std::sort(read.begin(), read.end(),
-            [](const auto& a, const auto& b) { return a.first.index < b.first.index; });
-  MapDatabase merged = std::move(read[0].second);
-  for (size_t k = 1; k < read.size(); ++k) {
-    auto& tiles = read[k].second.tiles;
-    std::move(tiles.begin(), tiles.end(), std::back_inserter(merged.tiles));
-  }
-  WriteDatabase(merged, out_path, MapShard{});
-  return merged;
+  MapMergeSummary summary;
+  summary.db = ref;
+  WriteDatabase(ref, out_path, MapShard{}, [&](const std::function<void(const MapTile&)>& emit) {
+    for (int i = 0; i < count; ++i) {
+      MapShard shard;
+      const MapDatabase part = ReadDatabase(parts[by_index[i]], &shard);
+      if (shard.index != i)  // changed since pass 1
+        throw Error("changed while merging", {.file = parts[by_index[i]]});
+      for (const MapTile& t : part.tiles) {
+        emit(t);
+        ++summary.tiles;
+        summary.features += t.keypoints.size();
+      }
+    }
+  });
+  return summary;
 }
 
 MapCheckReport CheckMapDatabase(const std::string& path) {

@@ -96,9 +96,16 @@ MapDatabase BuildMapDatabase(const std::string& ortho_path, const MapBuildOption
 
 // Joins the parts of a sharded build (every shard of one N exactly once, any order; each part
 // verified as LoadMapDatabase verifies a map) into one database at `out_path`, written
-// atomically with fresh checksums: the same tiles and features as the unsharded build. Throws
-// Error naming the part at fault (missing shards, a shard twice, another build's part).
-MapDatabase MergeMapParts(const std::vector<std::string>& part_paths, const std::string& out_path);
+// atomically with fresh checksums: the same tiles and features as the unsharded build (the same
+// file, byte for byte, when the parts name the same orthophoto). Parts are streamed through one
+// at a time: the merge holds one part's tiles in memory, not the map's. Throws Error naming the
+// part at fault (missing shards, a shard twice, another build's or split's part).
+struct MapMergeSummary {
+  MapDatabase db;  // the merged map's metadata (no tiles)
+  size_t tiles = 0, features = 0;
+};
+MapMergeSummary MergeMapParts(const std::vector<std::string>& part_paths,
+                              const std::string& out_path);
 
 // Loads a database, verifying the metadata's and every tile's checksums; throws Error naming the
 // file if it is not one, is incomplete, has another format version, or is damaged (naming the
