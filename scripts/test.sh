@@ -5,6 +5,8 @@
 #   scripts/test.sh --sanitize [CTEST ARGS]  AddressSanitizer + UndefinedBehaviorSanitizer build in
 #                                            build-asan/ (leak detection on, any report fails the
 #                                            test); every test runs in full
+# OPTINAV_SLURM_TEST=1 also runs scripts/slurm_test.sh after the Release tests: a one-node Slurm
+# cluster on localhost runs a planned sweep and a sharded map build (about a minute; root).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 export OPTINAV_NO_PROGRESS=1
@@ -21,4 +23,7 @@ if [[ "${1:-}" == "--sanitize" ]]; then
   exec ctest --test-dir "${ROOT}/build-asan" --output-on-failure -j2 "$@"
 fi
 "${ROOT}/scripts/setup.sh"
-exec ctest --test-dir "${ROOT}/build" --output-on-failure -j2 "$@"
+ctest --test-dir "${ROOT}/build" --output-on-failure -j2 "$@"
+if [[ "${OPTINAV_SLURM_TEST:-0}" == 1 ]]; then
+  "${ROOT}/scripts/slurm_test.sh" "${ROOT}/build"
+fi

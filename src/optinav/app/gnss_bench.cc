@@ -23,6 +23,7 @@
 #include "optinav/sim/sensors.h"
 #include "optinav/sim/simulation.h"
 #include "optinav/util/error.h"
+#include "optinav/util/file_lock.h"
 #include "optinav/util/string_printf.h"
 #include "optinav/vio/pipeline.h"
 
@@ -167,7 +168,15 @@ GnssBenchSequenceInfo PrepareSequence(GnssBenchSequence sequence, const GnssBenc
   seq.sequence = sequence;
   seq.name = GnssBenchSequenceName(sequence);
   seq.dir = (fs::path(options.out_dir) / "sequences" / seq.name).string();
+  // Tasks of a planned sweep that share a sequence take turns: the first renders it.
+  std::optional<FileLock> lock;
+  if (options.task >= 0) {
+    fs::create_directories(fs::path(seq.dir).parent_path());
+    lock.emplace(seq.dir + ".lock");
+  }
   const bool complete = fs::is_regular_file(fs::path(seq.dir) / "sim_complete.json");
+  if (options.merge && !complete)
+    throw Error("the sequence is not complete (merge renders nothing)", {.file = seq.dir});
   if (!(options.reuse && complete)) {
     if (progress)
       progress(StringPrintf("bench gnss: rendering the %s sequence -> %s", seq.name.c_str(),
@@ -427,10 +436,15 @@ GnssRunResult RunOne(const GnssBenchSequenceInfo& seq, std::optional<GnssConditi
   r.seed = seed;
   const fs::path stem = fs::path(options.out_dir) / "runs" / RunFileStem(r);
   r.reused = options.reuse && LoadRun(stem, options.fusion, &r);
+  if (options.merge && !r.reused)
+    throw Error("no finished run to merge (merge runs nothing)", {.file = stem.string() + ".json"});
   try {
     if (!r.reused) {
       RunVio(seq, options.fusion, &r);
       SaveRun(stem, options.fusion, r);
+      // Evaluated from the files, as a reused run is: a merge gives the same figures, to the bit.
+      r.estimate = io::ReadTrajectory(stem.string() + ".tum");
+      if (!r.live.empty()) r.live = io::ReadTrajectory(stem.string() + ".live.tum");
     }
     Evaluate(seq, vio_alone, &r);
   } catch (const std::exception& ex) {
@@ -495,12 +509,103 @@ void WriteResults(const GnssBenchOptions& options, const GnssBenchResult& result
 
 }  // namespace
 
-GnssBenchResult RunGnssBench(const GnssBenchOptions& options, const GnssBenchProgress& progress) {
+namespace {
+
+// The runs in RunGnssBench's order: per sequence the VIO alone, then sequence x condition x norm x
+// seed. sequence: index into options.sequences.
+struct PlannedRun {
+  size_t sequence;
+  std::optional<GnssCondition> condition;
+  std::optional<vio::GnssNorm> norm;
+  int seed;
+};
+
+std::vector<PlannedRun> PlannedRuns(const GnssBenchOptions& o) {
+  std::vector<PlannedRun> out;
+  for (size_t s = 0; s < o.sequences.size(); ++s) out.push_back({s, std::nullopt, std::nullopt, 0});
+  for (size_t s = 0; s < o.sequences.size(); ++s)
+    for (GnssCondition c : o.conditions)
+      for (vio::GnssNorm n : o.norms)
+        for (int seed = 1; seed <= o.seeds; ++seed) out.push_back({s, c, n, seed});
+  return out;
+}
+
+void ThrowIfInvalid(const GnssBenchOptions& options) {
   if (const std::string e = options.Check(); !e.empty()) {
     const size_t space = e.find(' ');  // the message starts with the flag at fault
     throw Error(e.substr(space + 1), {.field = e.substr(0, space)});
   }
+}
+
+}  // namespace
+
+std::vector<PlannedTask> GnssBenchTasks(const GnssBenchOptions& options) {
+  std::vector<PlannedTask> out;
+  for (const PlannedRun& p : PlannedRuns(options)) {
+    GnssRunResult r;
+    r.sequence = GnssBenchSequenceName(options.sequences[p.sequence]);
+    r.condition = p.condition;
+    r.norm = p.norm;
+    r.seed = p.seed;
+    const std::string stem = (fs::path(options.out_dir) / "runs" / RunFileStem(r)).string();
+    out.push_back({fmt::format("{}, {}, {}, seed {}", r.sequence, ConditionLabel(r.condition),
+                               NormLabel(r.norm), r.seed),
+                   {stem + ".tum", stem + ".json"}});
+  }
+  return out;
+}
+
+SlurmResources GnssBenchTaskResources(const GnssBenchOptions& o) {
+  // Measured on the 2-core VM (bench/RESULTS.md, "Slurm", 2026-11-26), the drone camera's
+  // 752x480 (0.361 Mpx) at 20 Hz, 20 s of the room: rendering 127 ms per frame (done by the first
+  // task that needs the sequence), the unthreaded VIO 61 ms; peak memory 121 MB. Per frame
+  // 0.01 s + 0.52 s/Mpx covers both. Asked: 512 MB + 256 MB/Mpx; time 3x, 10 min at least.
+  const double megapixels = 0.361 * o.scale * o.scale;
+  double seconds = 0;
+  for (GnssBenchSequence s : o.sequences)
+    seconds = std::max(seconds, o.duration_s > 0                ? o.duration_s
+                                : s == GnssBenchSequence::kRoom ? 100.0
+                                                                : 200.0);
+  const double frames = seconds * 20;
+  const double estimate_s = frames * (0.01 + 0.52 * megapixels);
+  SlurmResources r;
+  r.cpus_per_task = 1;
+  r.mem_mb = static_cast<int>(std::ceil((512 + 256 * megapixels) / 64) * 64);
+  r.time_min = std::max(10, static_cast<int>(std::ceil(3 * estimate_s / 60)));
+  r.derivation = fmt::format(
+      "1 CPU (unthreaded VIO); memory 512 MB + 256 MB/Mpx (measured peak ~120 MB); time 3 x {:.0f} "
+      "frames x (0.01 + 0.52 s/Mpx at {:.3f} Mpx) = 3 x {:.0f} s (rendering and VIO), 10 min at "
+      "least",
+      frames, megapixels, estimate_s);
+  return r;
+}
+
+GnssBenchResult RunGnssBench(const GnssBenchOptions& options, const GnssBenchProgress& progress) {
+  ThrowIfInvalid(options);
+  if (options.merge) {
+    const std::optional<SlurmPlan> plan = ReadSlurmPlan(options.out_dir);
+    if (!plan)
+      throw Error("no Slurm plan to merge (plan.json; made by --plan slurm)",
+                  {.file = options.out_dir});
+    ThrowIfUnfinished(*plan);
+  }
   fs::create_directories(fs::path(options.out_dir) / "runs");
+  if (options.task >= 0) {  // one task of a planned sweep: its run files, no tables
+    const std::vector<PlannedRun> runs = PlannedRuns(options);
+    if (static_cast<size_t>(options.task) >= runs.size())
+      throw Error(fmt::format("task {} does not exist (the plan has {} tasks: 0-{})", options.task,
+                              runs.size(), runs.size() - 1),
+                  {.field = "--task"});
+    const PlannedRun& p = runs[options.task];
+    GnssBenchResult result;
+    result.sequences.push_back(PrepareSequence(options.sequences[p.sequence], options, progress));
+    result.runs.push_back(
+        RunOne(result.sequences[0], p.condition, p.norm, p.seed, nullptr, options));
+    const GnssRunResult& r = result.runs[0];
+    if (!r.ok) throw Error("task " + std::to_string(options.task) + " failed: " + r.error);
+    if (progress) progress(RunLine(r, 1, 1));
+    return result;
+  }
   GnssBenchResult result;
   for (GnssBenchSequence s : options.sequences)
     result.sequences.push_back(PrepareSequence(s, options, progress));

@@ -18,6 +18,7 @@
 
 #include <Eigen/Core>
 
+#include "optinav/app/slurm_plan.h"
 #include "optinav/geometry/trajectory.h"
 #include "optinav/vio/gnss_fusion.h"
 
@@ -64,6 +65,13 @@ struct GnssBenchOptions {
   bool reuse = false;
   // Every fused run's fusion; the norm and the lever arm are set per run.
   vio::GnssFusionOptions fusion;
+  // A planned sweep (app/slurm_plan.h). task >= 0: only that task of GnssBenchTasks() (one run):
+  // render its sequence unless complete (one task at a time, under a lock beside it), run the
+  // VIO, write the run's files; no tables; a failed run throws.
+  int task = -1;
+  // Merge a planned sweep in out_dir: every task must have finished (else Error listing those
+  // that have not, with their logs); nothing is rendered or run.
+  bool merge = false;
 
   // "" when valid, else a message that starts with the flag at fault ("--seeds must be ...").
   std::string Check() const;
@@ -120,6 +128,14 @@ using GnssBenchProgress = std::function<void(const std::string& line)>;
 // alone fails; a failed fused run is a row marked failed.
 GnssBenchResult RunGnssBench(const GnssBenchOptions& options,
                              const GnssBenchProgress& progress = {});
+
+// The benchmark's tasks for a planned sweep, one per run in RunGnssBench's order: per sequence
+// the VIO alone, then per sequence, condition, norm and seed the fused run; each writes
+// OUT/runs/<stem>.{tum,json} (.json last).
+std::vector<PlannedTask> GnssBenchTasks(const GnssBenchOptions& options);
+// Per task: 1 CPU (the VIO runs unthreaded here), memory and time from the frame size and the
+// sequence's length (docs/SLURM.md).
+SlurmResources GnssBenchTaskResources(const GnssBenchOptions& options);
 
 // The GNSS of a condition for a ground truth. Common random numbers: the Gaussian noise of a
 // sample depends only on its time and the seed, so the outlier and outage conditions are the

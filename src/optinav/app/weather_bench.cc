@@ -17,6 +17,7 @@
 #include "optinav/io/trajectory_io.h"
 #include "optinav/sim/simulation.h"
 #include "optinav/util/error.h"
+#include "optinav/util/file_lock.h"
 #include "optinav/util/timer.h"
 
 namespace fs = std::filesystem;
@@ -284,7 +285,15 @@ struct Shared {
 
 // Renders the sequence unless --reuse finds it complete; true when it was rendered now.
 bool Prepare(const Sequence& s, Shared* sh) {
+  // Tasks of a planned sweep that share a sequence take turns: the first renders it.
+  std::optional<FileLock> lock;
+  if (sh->options.task >= 0) {
+    fs::create_directories(fs::path(s.dir).parent_path());
+    lock.emplace(s.dir + ".lock");
+  }
   if (sh->options.reuse && CompleteRendering(s, sh->options)) return false;
+  if (sh->options.merge)
+    throw Error("the sequence is not complete (merge renders nothing)", {.file = s.dir});
   sh->Say(fmt::format("bench weather: rendering {} (seed {}) -> {}", s.name, s.seed, s.dir));
   const sim::SimulationSummary sum = sim::RunSimulation(SimOptions(s, sh->options));
   sh->Say(fmt::format("bench weather: rendered {}: {} stereo frames {}x{}, {:.0f} m, {:.1f} s",
@@ -292,14 +301,16 @@ bool Prepare(const Sequence& s, Shared* sh) {
   return true;
 }
 
-// Every mode on one sequence (rendered first); results in the order of the modes.
-std::vector<WeatherRunResult> RunSequence(const Sequence& s, Shared* sh) {
+// The modes on one sequence (rendered first; all of the options' unless `modes`); results in
+// the order of the modes.
+std::vector<WeatherRunResult> RunSequence(const Sequence& s, Shared* sh,
+                                          const std::vector<vio::VioMode>* modes = nullptr) {
   const WeatherBenchOptions& o = sh->options;
   const bool rendered = Prepare(s, sh);
   const Trajectory truth = io::ReadTrajectory(
       (fs::path(s.dir) / "mav0" / "state_groundtruth_estimate0" / "data.csv").string());
   std::vector<WeatherRunResult> out;
-  for (vio::VioMode mode : o.modes) {
+  for (vio::VioMode mode : modes ? *modes : o.modes) {
     WeatherRunResult r;
     r.sequence = s.name;
     r.world = s.world;
@@ -310,6 +321,8 @@ std::vector<WeatherRunResult> RunSequence(const Sequence& s, Shared* sh) {
     const std::string stem = (fs::path(o.out_dir) / "runs" / RunStem(s, mode)).string();
     // A run is only as current as its sequence: a fresh rendering is run again.
     r.reused = o.reuse && !rendered && LoadRun(stem, o, &r);
+    if (o.merge && !r.reused)
+      throw Error("no finished run to merge (merge runs nothing)", {.file = stem + ".json"});
     try {
       if (!r.reused) RunVio(s, stem, o, truth.t_ns.front(), &r);
       Evaluate(truth, stem, &r);
@@ -465,13 +478,71 @@ std::vector<WeatherCell> SummariseWeatherRuns(const WeatherBenchOptions& options
   return cells;
 }
 
+std::vector<PlannedTask> WeatherBenchTasks(const WeatherBenchOptions& options) {
+  std::vector<PlannedTask> out;
+  for (const Sequence& s : ListSequences(options)) {
+    for (vio::VioMode mode : options.modes) {
+      const std::string stem = (fs::path(options.out_dir) / "runs" / RunStem(s, mode)).string();
+      out.push_back(
+          {fmt::format("{} {} seed {}", s.name, vio::VioModeName(mode), s.seed),
+           {stem + ".tum", stem + ".odometry.tum", stem + ".stats.json", stem + ".json"}});
+    }
+  }
+  return out;
+}
+
+SlurmResources WeatherBenchTaskResources(const WeatherBenchOptions& o) {
+  // Measured on the 2-core VM (bench/RESULTS.md, "Slurm", 2026-11-26): per frame, rendering
+  // 12.7 ms at 200x150 and 116 ms at 800x600, the threaded VIO 16.3 ms and 81 ms: both about
+  // linear in the pixels, 0.018 s + 0.373 s/Mpx together. Peak memory 146-149 MB at every size
+  // (frames are streamed to disk). The whole car route is 3,509 frames. Asked: 512 MB (3x the
+  // peak) + 256 MB/Mpx; time 3x the estimate (slower or shared nodes), 10 min at least.
+  const double megapixels = 0.48 * o.scale * o.scale;
+  const double frames = o.duration_s > 0 ? std::min(3509.0, o.duration_s / 0.03 + 1) : 3509;
+  const double vio_frames = o.max_frames > 0 ? std::min<double>(frames, o.max_frames) : frames;
+  const double estimate_s =
+      frames * (0.0058 + 0.2296 * megapixels) +
+      o.modes.size() * vio_frames * (0.0120 + 0.1433 * megapixels) / o.modes.size();
+  SlurmResources r;
+  r.cpus_per_task = 2;
+  r.mem_mb = static_cast<int>(std::ceil((512 + 256 * megapixels) / 64) * 64);
+  r.time_min = std::max(10, static_cast<int>(std::ceil(3 * estimate_s / 60)));
+  r.derivation = fmt::format(
+      "2 CPUs (threaded VIO); memory 512 MB + 256 MB/Mpx (measured peak ~150 MB); time 3 x "
+      "{:.0f} frames x (0.018 + 0.373 s/Mpx at {:.3f} Mpx) = 3 x {:.0f} s, 10 min at least",
+      frames, megapixels, estimate_s);
+  return r;
+}
+
 WeatherBenchResult RunWeatherBench(const WeatherBenchOptions& options,
                                    const WeatherBenchProgress& progress) {
   ThrowIfInvalid(options);
   const Timer timer;
+  if (options.merge) {
+    const std::optional<SlurmPlan> plan = ReadSlurmPlan(options.out_dir);
+    if (!plan)
+      throw Error("no Slurm plan to merge (plan.json; made by --plan slurm)",
+                  {.file = options.out_dir});
+    ThrowIfUnfinished(*plan);
+  }
   fs::create_directories(fs::path(options.out_dir) / "runs");
   const std::vector<Sequence> sequences = ListSequences(options);
   Shared shared{options, progress};
+  if (options.task >= 0) {  // one task of a planned sweep: its run files, no tables
+    const size_t n_modes = options.modes.size();
+    if (static_cast<size_t>(options.task) >= sequences.size() * n_modes)
+      throw Error(fmt::format("task {} does not exist (the plan has {} tasks: 0-{})", options.task,
+                              sequences.size() * n_modes, sequences.size() * n_modes - 1),
+                  {.field = "--task"});
+    const std::vector<vio::VioMode> mode = {options.modes[options.task % n_modes]};
+    shared.total = 1;
+    WeatherBenchResult result;
+    result.runs = RunSequence(sequences[options.task / n_modes], &shared, &mode);
+    if (!result.runs[0].ok)
+      throw Error("task " + std::to_string(options.task) + " failed: " + result.runs[0].error);
+    result.wall_s = timer.ElapsedSeconds();
+    return result;
+  }
   shared.total = sequences.size() * options.modes.size();
   std::vector<std::vector<WeatherRunResult>> per_sequence(sequences.size());
   std::atomic<size_t> next{0};

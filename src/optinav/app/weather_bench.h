@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "optinav/app/slurm_plan.h"
 #include "optinav/sim/weather.h"
 #include "optinav/sim/world.h"
 #include "optinav/vio/estimator.h"
@@ -60,6 +61,13 @@ struct WeatherBenchOptions {
   bool reuse = false;
   double duration_s = 0;  // seconds of the car route to render (0: all of it); tests
   size_t max_frames = 0;  // frames the VIO processes (0: all); tests
+  // A planned sweep (app/slurm_plan.h). task >= 0: only that task of WeatherBenchTasks() (one
+  // sequence and mode): render the sequence unless complete (one task at a time, under a lock
+  // beside it), run the mode, write the run's files; no tables; a failed run throws.
+  int task = -1;
+  // Merge a planned sweep in out_dir: every task must have finished (else Error listing those that
+  // have not, with their logs); nothing is rendered or run.
+  bool merge = false;
 
   // "" when valid, else a message that starts with the flag at fault ("--seeds must be ...").
   std::string Check() const;
@@ -126,6 +134,13 @@ using WeatherBenchProgress = std::function<void(const std::string& line)>;
 // when a sequence cannot be rendered; a failed VIO run is a row marked failed.
 WeatherBenchResult RunWeatherBench(const WeatherBenchOptions& options,
                                    const WeatherBenchProgress& progress = {});
+
+// The benchmark's tasks for a planned sweep, in RunWeatherBench's order: per seed, world and
+// condition, one per mode; each writes OUT/runs/<sequence>_<mode>_seed<S>.{tum,odometry.tum,
+// stats.json,json} (.json last).
+std::vector<PlannedTask> WeatherBenchTasks(const WeatherBenchOptions& options);
+// Per task: 2 CPUs (the threaded VIO), memory and time from the frame size (docs/SLURM.md).
+SlurmResources WeatherBenchTaskResources(const WeatherBenchOptions& options);
 
 // The cells from the runs (summaries over the seeds, ratios, the document's figures).
 std::vector<WeatherCell> SummariseWeatherRuns(const WeatherBenchOptions& options,

@@ -153,5 +153,77 @@ TEST(WeatherBench, ShortUrbanRouteClearAndDustThenReuse) {
   fs::remove_all(dir);
 }
 
+// A planned sweep run task by task (as Slurm's array tasks would), then merged: the merge lists
+// unfinished tasks until all are done, then writes the tables a single-machine run writes from
+// the same run files, byte for byte; with the timing of an independent single-machine run put in
+// the records, byte for byte that run's tables.
+TEST(WeatherBench, PlannedTasksMergeIntoTheSingleMachineTables) {
+  const fs::path dir = testing::MakeTempDir("weather_tasks");
+  WeatherBenchOptions o;
+  o.worlds = {sim::WorldKind::kUrban};
+  o.conditions = {sim::ParseWeather("none"), sim::ParseWeather("fog:50")};
+  o.scale = 0.2;
+  o.duration_s = 3;
+  o.out_dir = (dir / "single").string();
+  const WeatherBenchResult single = RunWeatherBench(o);
+  ASSERT_TRUE(single.runs[0].ok && single.runs[1].ok);
+
+  o.out_dir = (dir / "sweep").string();
+  const std::vector<PlannedTask> tasks = WeatherBenchTasks(o);
+  ASSERT_EQ(tasks.size(), 2u);
+  EXPECT_EQ(tasks[1].label, "urban_fog_50 stereo seed 1");
+  EXPECT_EQ(tasks[1].outputs.back(), o.out_dir + "/runs/urban_fog_50_stereo_seed1.json");
+  const SlurmPlan plan = WriteSweepPlan("bench weather", o.out_dir,
+                                        {"--out", o.out_dir, "--worlds", "urban", "--conditions",
+                                         "none,fog:50", "--scale", "0.2", "--duration", "3"},
+                                        tasks, WeatherBenchTaskResources(o), "");
+  EXPECT_EQ(plan.task_command.back(), "--reuse");
+  WeatherBenchOptions merge = o;
+  merge.reuse = merge.merge = true;
+  EXPECT_ERROR(RunWeatherBench(merge), {.file = "plan.json"},
+               "re-submit them alone: sbatch --array=0,1 ");
+  WeatherBenchOptions task = o;
+  task.reuse = true;
+  task.task = 1;
+  const WeatherBenchResult one = RunWeatherBench(task);
+  ASSERT_EQ(one.runs.size(), 1u);
+  EXPECT_EQ(one.runs[0].sequence, "urban_fog_50");
+  EXPECT_FALSE(fs::exists(dir / "sweep" / "table.md"));  // a task writes its run files only
+  EXPECT_FALSE(fs::exists(dir / "sweep" / "sequences" / "seed1_3s" / "urban_default"));
+  EXPECT_ERROR(RunWeatherBench(merge), {.file = "plan.json"}, "1 of 2 planned task(s) unfinished");
+  task.task = 0;
+  RunWeatherBench(task);
+  task.task = 2;
+  EXPECT_ERROR(RunWeatherBench(task), {.field = "--task"}, "task 2 does not exist");
+  const WeatherBenchResult merged = RunWeatherBench(merge);
+  EXPECT_TRUE(merged.runs[0].reused && merged.runs[1].reused);
+  // The same run files read by a single-machine --reuse run: the same bytes.
+  WeatherBenchOptions again = o;
+  again.reuse = true;
+  again.out_dir = (dir / "again").string();
+  fs::copy(dir / "sweep", dir / "again", fs::copy_options::recursive);
+  RunWeatherBench(again);
+  for (const char* f : {"table.md", "table.csv"})
+    EXPECT_EQ(testing::ReadFile(dir / "again" / f), testing::ReadFile(dir / "sweep" / f)) << f;
+  // The independent single-machine run: every figure but the timing is the same.
+  for (size_t i = 0; i < 2; ++i) {
+    EXPECT_EQ(merged.runs[i].mean_error_m, single.runs[i].mean_error_m);
+    EXPECT_EQ(merged.runs[i].ape_rmse_se3_m == merged.runs[i].ape_rmse_se3_m,
+              single.runs[i].ape_rmse_se3_m == single.runs[i].ape_rmse_se3_m);
+    EXPECT_EQ(merged.runs[i].frames, single.runs[i].frames);
+    // Its timing into the sweep's records: then the tables are the single run's, to the byte.
+    const std::string stem =
+        "runs/" + std::string(i == 0 ? "urban_default" : "urban_fog_50") + "_stereo_seed1.json";
+    nlohmann::json rec = nlohmann::json::parse(testing::ReadFile(dir / "sweep" / stem));
+    const nlohmann::json ref = nlohmann::json::parse(testing::ReadFile(dir / "single" / stem));
+    for (const char* k : {"wall_s", "fps", "frame_median_ms", "frame_p95_ms"}) rec[k] = ref[k];
+    testing::WriteFile(dir / "sweep" / stem, rec.dump(2) + "\n");
+  }
+  RunWeatherBench(merge);
+  for (const char* f : {"table.md", "table.csv"})
+    EXPECT_EQ(testing::ReadFile(dir / "sweep" / f), testing::ReadFile(dir / "single" / f)) << f;
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace optinav::app

@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <vector>
 
+#include "optinav/app/slurm_plan.h"
 #include "optinav/io/text_parse.h"
 #include "optinav/util/logging.h"
 
@@ -99,6 +100,21 @@ void OutputDirOptions::Add(CLI::App& app, const std::string& out_help,
                            const std::string& force_help) {
   app.add_option("--out", dir, out_help)->required();
   app.add_flag("--force", force, force_help);
+}
+
+}  // namespace optinav::cli
+
+namespace optinav::cli {
+
+int RunWithPlannedOptions(const std::string& kind, int argc, char** argv,
+                          const std::function<int(int, char**)>& command) {
+  const auto merge = app::PlannedMergeArgs(kind, {argv + 1, argv + argc});
+  if (!merge) return command(argc, argv);
+  std::vector<std::string> args = {argv[0]};
+  args.insert(args.end(), merge->begin(), merge->end());
+  std::vector<char*> ptrs;
+  for (std::string& a : args) ptrs.push_back(a.data());
+  return command(static_cast<int>(ptrs.size()), ptrs.data());
 }
 
 }  // namespace optinav::cli

@@ -54,3 +54,13 @@ struct OutputDirOptions {
 };
 
 }  // namespace optinav::cli
+
+namespace optinav::cli {
+
+// `optinav KIND --out DIR --reuse` alone where DIR holds a Slurm plan of that kind: `command` runs
+// on the plan's options (app::PlannedMergeArgs: the merge); otherwise on argv as given. argv[0]
+// is the command's name.
+int RunWithPlannedOptions(const std::string& kind, int argc, char** argv,
+                          const std::function<int(int, char**)>& command);
+
+}  // namespace optinav::cli

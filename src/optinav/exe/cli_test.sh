@@ -95,6 +95,22 @@ expect_error "map build without georeference" "georeference" "$BIN" map build \
 [[ ! -e "$WORK/x.db" ]] || fail "failed build left a database"
 expect_error "map build bad frame size" "--frame-size" "$BIN" map build \
   --ortho "$NAIP/naip_20090818.tif" --altitude 100 --hfov 60 --frame-size 640by480 --out "$WORK/x.db"
+# Sharded builds (issue 21): a part is no map; merge needs every shard; bad flags exit 2.
+expect_ok "map build shard" "$BIN" map build --ortho "$NAIP/naip_20090818.tif" --altitude 640 \
+  --hfov 90 --frame-size 256x256 --shard 1/2 --out "$WORK/part1.db"
+expect_error "map info on a part" "is part 1/2 of a sharded build" "$BIN" map info "$WORK/part1.db"
+expect_error "map merge missing shard" "shards missing: 0/2" "$BIN" map merge "$WORK/part1.db" \
+  --out "$WORK/m.db"
+[[ ! -e "$WORK/m.db" ]] || fail "failed merge left a database"
+"$BIN" map build --ortho "$NAIP/naip_20090818.tif" --altitude 640 --hfov 90 --frame-size 256x256 \
+  --shard 2/2 --out "$WORK/x.db" >/dev/null 2>&1
+[[ $? -eq 2 ]] || fail "map build --shard 2/2: exit 2 expected"
+"$BIN" bench weather --out "$WORK/wb" --plan pbs >/dev/null 2>&1
+[[ $? -eq 2 ]] || fail "bench weather --plan pbs: exit 2 expected"
+expect_error "map merge of a plan without tasks done" "re-submit them alone: sbatch --array=0,1" \
+  bash -c "'$BIN' map build --ortho '$NAIP/naip_20090818.tif' --altitude 640 --hfov 90 \
+    --frame-size 256x256 --out '$WORK/planned.db' --plan slurm --shards 2 >/dev/null &&
+    '$BIN' map merge --plan-dir '$WORK/planned.db.slurm' --out '$WORK/planned.db'"
 expect_error "map info on a non-database" "not a valid optinav map database" "$BIN" map info \
   "$WORK/short.txt"
 expect_error "locate unreadable image" "cannot read image" "$BIN" map locate \

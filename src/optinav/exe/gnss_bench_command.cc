@@ -6,6 +6,7 @@
 #include <CLI/CLI.hpp>
 
 #include "optinav/app/gnss_bench.h"
+#include "optinav/app/slurm_plan.h"
 #include "optinav/exe/cli_runner.h"
 #include "optinav/exe/commands.h"
 #include "optinav/exe/gnss_flags.h"
@@ -18,6 +19,7 @@ struct BenchFlags {
   std::string sequences = "room,outdoor", norms = "l2,huber,tukey";
   std::string conditions = "ideal,sigma0.5,sigma1.5,sigma3,outliers,outage";
   cli::GnssFusionFlags fusion;
+  std::string plan, slurm_args;
 };
 
 std::vector<std::string> SplitList(const std::string& s) {
@@ -51,7 +53,15 @@ void AddFlags(CLI::App& app, app::GnssBenchOptions* o, BenchFlags* f) {
   app.add_flag(
       "--reuse", o->reuse,
       "reuse complete sequences in OUT/sequences and finished runs in OUT/runs (resume, add "
-      "seeds)");
+      "seeds; in a planned folder: merge the tasks' runs)");
+  app.add_option("--duration", o->duration_s, "sequence length (s; 0: room 100, outdoor 200)")
+      ->capture_default_str();
+  app.add_option(
+      "--plan", f->plan,
+      "slurm: write OUT/plan.json and OUT/submit.sbatch (a job array) instead of running");
+  app.add_option("--slurm-args", f->slurm_args,
+                 "extra sbatch options for the planned tasks (override the derived resources)");
+  app.add_option("--task", o->task, "run only task N of the plan (OUT/plan.json)");
 }
 
 // The list and fusion flags into `o`, then o->Check().
@@ -81,7 +91,7 @@ void ApplyFlags(const BenchFlags& f, app::GnssBenchOptions* o) {
   cli::ThrowIfCheckFailed(o->Check());
 }
 
-int RunGnssBench(int argc, char** argv) {
+int RunGnssBenchArgs(int argc, char** argv) {
   CLI::App app{
       "GNSS fusion benchmark: RMSE ATE per GNSS condition (noise, outliers, an outage) of the "
       "fused VIO on simulated flights",
@@ -89,12 +99,29 @@ int RunGnssBench(int argc, char** argv) {
   app::GnssBenchOptions options;
   BenchFlags flags;
   AddFlags(app, &options, &flags);
+  const std::vector<std::string> given(argv + 1, argv + argc);
   const auto run = [&] {
     ApplyFlags(flags, &options);
+    if (!flags.plan.empty()) {
+      if (flags.plan != "slurm") throw cli::UsageError("takes 'slurm'", "--plan");
+      if (options.task >= 0) throw cli::UsageError("is not used with --plan", "--task");
+      const app::SlurmPlan plan =
+          app::WriteSweepPlan("bench gnss", options.out_dir, given, app::GnssBenchTasks(options),
+                              app::GnssBenchTaskResources(options), flags.slurm_args);
+      std::printf(
+          "bench gnss: planned %zu task(s) -> %s/plan.json\n  submit: sbatch %s/submit.sbatch "
+          "(the merge follows when all succeed)\n  merge by hand: optinav bench gnss --out %s "
+          "--reuse\n",
+          plan.tasks.size(), plan.dir.c_str(), plan.dir.c_str(), plan.dir.c_str());
+      return 0;
+    }
+    if (options.reuse && options.task < 0)
+      options.merge = app::IsPlannedMerge("bench gnss", options.out_dir, given);
     const app::GnssBenchResult result = app::RunGnssBench(options, [](const std::string& line) {
       std::printf("%s\n", line.c_str());
       std::fflush(stdout);
     });
+    if (options.task >= 0) return 0;  // run files only
     std::printf("\n%s", result.tables.c_str());
     std::printf("never worse than VIO alone (every row, every seed, 5 %% margin): %s\n",
                 result.never_worse ? "yes" : "NO");
@@ -104,6 +131,11 @@ int RunGnssBench(int argc, char** argv) {
     return 0;
   };
   return cli::RunCli(app, argc, argv, run, {.default_log_level = "warn"});
+}
+
+int RunGnssBench(int argc, char** argv) {
+  // `--out DIR --reuse` alone in a planned folder: the merge, with the plan's options.
+  return cli::RunWithPlannedOptions("bench gnss", argc, argv, RunGnssBenchArgs);
 }
 
 }  // namespace

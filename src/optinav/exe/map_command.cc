@@ -6,6 +6,7 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "optinav/app/map_build.h"
 #include "optinav/app/map_info.h"
 #include "optinav/app/map_locate.h"
 #include "optinav/app/map_render.h"
@@ -18,13 +19,19 @@ namespace optinav {
 namespace {
 
 struct BuildFlags {
-  std::string ortho, out, frame_size = "640x480", features = "orb";
+  std::vector<std::string> orthos;
+  std::string ortho_list, out, frame_size = "640x480", features = "orb";
+  std::string shard, plan, plan_dir, slurm_args;
+  int shards = 0;
   maploc::MapBuildOptions options;
 };
 
 void AddBuild(CLI::App& app, BuildFlags& f) {
   maploc::MapBuildOptions& o = f.options;
-  app.add_option("--ortho", f.ortho, "georeferenced orthophoto (GeoTIFF)")->required();
+  app.add_option("--ortho", f.orthos,
+                 "georeferenced orthophoto (GeoTIFF, COG, VRT, /vsi* path); repeat for a mosaic of "
+                 "one CRS");
+  app.add_option("--ortho-list", f.ortho_list, "file listing orthophotos, one per line");
   app.add_option("--altitude", o.altitude_m, "flight altitude above ground (m)")->required();
   app.add_option("--hfov", o.hfov_deg, "camera horizontal field of view (deg)")->required();
   app.add_option("--frame-size", f.frame_size, "camera frame size WxH (px)")->required();
@@ -36,6 +43,13 @@ void AddBuild(CLI::App& app, BuildFlags& f) {
   app.add_option("--max-features", o.max_features, "features per tile")->capture_default_str();
   app.add_option("--threads", o.threads, "worker threads (0: all cores)")->capture_default_str();
   cli::OutputFile(app.add_option("--out", f.out, "output database (SQLite)"))->required();
+  app.add_option("--shard", f.shard,
+                 "I/N: build only shard I (0-based) of N, a part for `map merge`");
+  app.add_option("--plan", f.plan,
+                 "slurm: write a job array (one task per shard) and its merge instead of building");
+  app.add_option("--plan-dir", f.plan_dir, "folder of the plan (default: OUT.slurm)");
+  app.add_option("--shards", f.shards, "shards of the plan (default: about 20 min of work each)");
+  app.add_option("--slurm-args", f.slurm_args, "extra sbatch options for the planned tasks");
 }
 
 int RunBuild(BuildFlags f) {
@@ -46,10 +60,53 @@ int RunBuild(BuildFlags f) {
   f.options.feature_type = *type;
   ParseFrameSize(f.frame_size, "--frame-size", 0, &f.options.frame_width, &f.options.frame_height);
   cli::ThrowIfInvalid(f.options.Check(), "");
+  if (f.orthos.empty() && f.ortho_list.empty())
+    throw cli::UsageError("give --ortho (one or more) or --ortho-list", "--ortho");
+  if (!f.plan.empty()) {
+    if (f.plan != "slurm") throw cli::UsageError("takes 'slurm'", "--plan");
+    if (!f.shard.empty()) throw cli::UsageError("is not used with --plan", "--shard");
+    if (f.shards < 0) throw cli::UsageError("must be >= 1 (0: derived)", "--shards");
+    const app::SlurmPlan plan = app::WriteMapBuildPlan({.orthos = f.orthos,
+                                                        .ortho_list = f.ortho_list,
+                                                        .out = f.out,
+                                                        .plan_dir = f.plan_dir,
+                                                        .shards = f.shards,
+                                                        .slurm_args = f.slurm_args,
+                                                        .build = f.options});
+    std::printf(
+        "map build: planned %zu shard(s) -> %s/plan.json\n  submit: sbatch %s/submit.sbatch (the "
+        "merge into %s follows when all succeed)\n  merge by hand: optinav map merge --plan-dir %s "
+        "--out %s\n",
+        plan.tasks.size(), plan.dir.c_str(), plan.dir.c_str(), f.out.c_str(), plan.dir.c_str(),
+        f.out.c_str());
+    return 0;
+  }
+  maploc::MapShard shard;
+  if (!f.shard.empty()) {
+    try {
+      shard = maploc::ParseMapShard(f.shard);
+    } catch (const Error& e) {
+      throw cli::UsageError(e.message(), "--shard");
+    }
+  }
   Timer t;
-  const maploc::MapDatabase db = maploc::BuildMapDatabase(f.ortho, f.options, f.out);
-  std::printf("built %s: %d x %d tiles, %zu features, %.1f s\n", f.out.c_str(), db.cols, db.rows,
-              db.FeatureCount(), t.ElapsedSeconds());
+  const std::string ortho = app::ResolveOrthoInputs(f.orthos, f.ortho_list, f.out + ".vrt");
+  const maploc::MapDatabase db = maploc::BuildMapDatabase(ortho, f.options, f.out, shard);
+  std::printf("built %s%s: %zu of %d x %d tiles, %zu features, %.1f s\n", f.out.c_str(),
+              shard.whole() ? "" : (" (shard " + shard.ToString() + ")").c_str(), db.tiles.size(),
+              db.cols, db.rows, db.FeatureCount(), t.ElapsedSeconds());
+  return 0;
+}
+
+int RunMerge(const std::vector<std::string>& parts, const std::string& plan_dir,
+             const std::string& out) {
+  if (parts.empty() == plan_dir.empty())
+    throw cli::UsageError("give the parts or --plan-dir (one of them)", "--plan-dir");
+  Timer t;
+  const maploc::MapMergeSummary m =
+      maploc::MergeMapParts(parts.empty() ? app::PlannedMapParts(plan_dir) : parts, out);
+  std::printf("merged %s: %d x %d = %zu tiles, %zu features, %.1f s\n", out.c_str(), m.db.cols,
+              m.db.rows, m.tiles, m.features, t.ElapsedSeconds());
   return 0;
 }
 
@@ -222,6 +279,12 @@ int RunMap(int argc, char** argv) {
   info->add_flag("--json", info_json, "machine-readable output");
   info->add_flag("--check", info_check,
                  "verify the whole file (SQLite structure, every checksum); exit 1 if damaged");
+  std::vector<std::string> merge_parts;
+  std::string merge_plan_dir, merge_out;
+  CLI::App* merge = app.add_subcommand("merge", "join the parts of a sharded build into one map");
+  merge->add_option("parts", merge_parts, "parts (map build --shard I/N)");
+  merge->add_option("--plan-dir", merge_plan_dir, "the parts of this plan (map build --plan)");
+  cli::OutputFile(merge->add_option("--out", merge_out, "output database"))->required();
   LocateFlags locate_flags;
   CLI::App* locate = app.add_subcommand("locate", "localize camera frames on the map");
   AddLocate(*locate, locate_flags);
@@ -231,6 +294,7 @@ int RunMap(int argc, char** argv) {
   return cli::RunCli(app, argc, argv, [&] {
     if (build->parsed()) return RunBuild(build_flags);
     if (info->parsed()) return RunInfo(info_path, info_json, info_check);
+    if (merge->parsed()) return RunMerge(merge_parts, merge_plan_dir, merge_out);
     if (locate->parsed()) return RunLocate(locate_flags);
     return RunRender(render_flags, *render);
   });

@@ -5,6 +5,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "optinav/app/slurm_plan.h"
 #include "optinav/app/weather_bench.h"
 #include "optinav/exe/cli_runner.h"
 #include "optinav/exe/commands.h"
@@ -16,6 +17,7 @@ namespace {
 // The flags that are lists, resolved after parsing ("" conditions: the suite's, per world).
 struct WeatherFlags {
   std::string worlds = "urban,terrain", conditions, modes = "stereo";
+  std::string plan, slurm_args;
 };
 
 void AddFlags(CLI::App& app, app::WeatherBenchOptions* o, WeatherFlags* f) {
@@ -33,7 +35,16 @@ void AddFlags(CLI::App& app, app::WeatherBenchOptions* o, WeatherFlags* f) {
   app.add_option("--jobs", o->jobs, "sequences in parallel (each VIO run is threaded)")
       ->capture_default_str();
   app.add_flag("--reuse", o->reuse,
-               "keep complete sequences in OUT/sequences and finished runs in OUT/runs (resume)");
+               "keep complete sequences in OUT/sequences and finished runs in OUT/runs (resume; "
+               "in a planned folder: merge the tasks' runs)");
+  app.add_option("--duration", o->duration_s, "seconds of the car route (0: all of it)")
+      ->capture_default_str();
+  app.add_option(
+      "--plan", f->plan,
+      "slurm: write OUT/plan.json and OUT/submit.sbatch (a job array) instead of running");
+  app.add_option("--slurm-args", f->slurm_args,
+                 "extra sbatch options for the planned tasks (override the derived resources)");
+  app.add_option("--task", o->task, "run only task N of the plan (OUT/plan.json)");
 }
 
 void ApplyFlags(const WeatherFlags& f, app::WeatherBenchOptions* o) {
@@ -45,9 +56,7 @@ void ApplyFlags(const WeatherFlags& f, app::WeatherBenchOptions* o) {
   cli::ThrowIfCheckFailed(o->Check());
 }
 
-}  // namespace
-
-int RunWeatherBench(int argc, char** argv) {
+int RunWeatherBenchArgs(int argc, char** argv) {
   CLI::App app{
       "Weather benchmark: the weather document's table (mean localization error of stereo "
       "odometry on the car route per weather condition), ours beside ORB-SLAM3's",
@@ -55,13 +64,30 @@ int RunWeatherBench(int argc, char** argv) {
   app::WeatherBenchOptions options;
   WeatherFlags flags;
   AddFlags(app, &options, &flags);
+  const std::vector<std::string> given(argv + 1, argv + argc);
   const auto run = [&] {
     ApplyFlags(flags, &options);
+    if (!flags.plan.empty()) {
+      if (flags.plan != "slurm") throw cli::UsageError("takes 'slurm'", "--plan");
+      if (options.task >= 0) throw cli::UsageError("is not used with --plan", "--task");
+      const app::SlurmPlan plan = app::WriteSweepPlan(
+          "bench weather", options.out_dir, given, app::WeatherBenchTasks(options),
+          app::WeatherBenchTaskResources(options), flags.slurm_args);
+      std::printf(
+          "bench weather: planned %zu task(s) -> %s/plan.json\n  submit: sbatch %s/submit.sbatch "
+          "(the merge follows when all succeed)\n  merge by hand: optinav bench weather --out %s "
+          "--reuse\n",
+          plan.tasks.size(), plan.dir.c_str(), plan.dir.c_str(), plan.dir.c_str());
+      return 0;
+    }
+    if (options.reuse && options.task < 0)
+      options.merge = app::IsPlannedMerge("bench weather", options.out_dir, given);
     const app::WeatherBenchResult result =
         app::RunWeatherBench(options, [](const std::string& line) {
           std::printf("%s\n", line.c_str());
           std::fflush(stdout);
         });
+    if (options.task >= 0) return 0;  // run files only
     std::printf("\n%s\n", result.table.c_str());
     std::printf(
         "bench weather: %zu runs in %.0f s; results.json, table.md, table.csv, "
@@ -70,6 +96,13 @@ int RunWeatherBench(int argc, char** argv) {
     return 0;
   };
   return cli::RunCli(app, argc, argv, run, {.default_log_level = "warn"});
+}
+
+}  // namespace
+
+int RunWeatherBench(int argc, char** argv) {
+  // `--out DIR --reuse` alone in a planned folder: the merge, with the plan's options.
+  return cli::RunWithPlannedOptions("bench weather", argc, argv, RunWeatherBenchArgs);
 }
 
 }  // namespace optinav

@@ -6,6 +6,7 @@
 #include <cpl_conv.h>
 #include <cpl_error.h>
 #include <gdal_priv.h>
+#include <gdal_utils.h>
 #include <ogr_spatialref.h>
 #include <opencv2/imgproc.hpp>
 
@@ -38,7 +39,10 @@ struct GeoRaster::Impl {
 
 GeoRaster GeoRaster::Open(const std::string& path) {
   InitGdal();
-  if (!std::filesystem::is_regular_file(path)) throw Error("raster file not found", {.file = path});
+  // /vsi paths (/vsicurl/, /vsis3/, /vsizip/, ...) are GDAL's virtual file systems: GDAL opens
+  // them.
+  if (path.rfind("/vsi", 0) != 0 && !std::filesystem::is_regular_file(path))
+    throw Error("raster file not found", {.file = path});
   GeoRaster r;
   r.impl_ = std::make_unique<Impl>();
   r.path_ = path;
@@ -213,6 +217,48 @@ void WriteGeoTiff(const std::string& path, const cv::Mat& image, const GeoTransf
   if (ec) {
     std::filesystem::remove(tmp);
     throw Error("cannot move GeoTIFF into place: " + ec.message(), {.file = path});
+  }
+}
+
+}  // namespace optinav::geo
+
+namespace optinav::geo {
+
+void WriteMosaicVrt(const std::vector<std::string>& inputs, const std::string& vrt_path) {
+  InitGdal();
+  if (inputs.empty()) throw Error("a mosaic needs at least one raster", {.file = vrt_path});
+  // One CRS: a VRT mosaic places rasters by their geotransforms, it does not reproject.
+  OGRSpatialReference first;
+  for (size_t i = 0; i < inputs.size(); ++i) {
+    const GeoRaster r = GeoRaster::Open(inputs[i]);
+    OGRSpatialReference srs;
+    srs.importFromWkt(r.crs_wkt().c_str());
+    if (i == 0) {
+      first = srs;
+    } else if (!srs.IsSame(&first)) {
+      throw Error("is in another CRS than " + inputs[0] +
+                      " (a mosaic needs one CRS; reproject "
+                      "with gdalwarp first)",
+                  {.file = inputs[i]});
+    }
+  }
+  std::vector<const char*> names;
+  for (const std::string& s : inputs) names.push_back(s.c_str());
+  const char* argv[] = {"-resolution", "highest", "-r", "nearest", nullptr};
+  GDALBuildVRTOptions* options = GDALBuildVRTOptionsNew(const_cast<char**>(argv), nullptr);
+  const std::string tmp = vrt_path + ".tmp.vrt";
+  CPLErrorReset();
+  int usage_error = 0;
+  GDALDatasetH vrt = GDALBuildVRT(tmp.c_str(), static_cast<int>(names.size()), nullptr,
+                                  names.data(), options, &usage_error);
+  GDALBuildVRTOptionsFree(options);
+  if (!vrt) throw Error("cannot build the mosaic: " + LastGdalError(), {.file = vrt_path});
+  GDALClose(vrt);  // writes the file
+  std::error_code ec;
+  std::filesystem::rename(tmp, vrt_path, ec);
+  if (ec) {
+    std::filesystem::remove(tmp);
+    throw Error("cannot move the mosaic into place: " + ec.message(), {.file = vrt_path});
   }
 }
 

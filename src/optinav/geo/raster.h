@@ -5,6 +5,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
@@ -60,5 +61,11 @@ struct GeoTiffWriteOptions {
 // `crs` is WKT or "EPSG:n". Throws Error on failure.
 void WriteGeoTiff(const std::string& path, const cv::Mat& image, const GeoTransform& transform,
                   const std::string& crs, const GeoTiffWriteOptions& options = {});
+
+// Writes a GDAL VRT mosaic of `inputs` (paths GDAL opens, /vsi* included; one CRS, else Error
+// naming the raster in another) to `vrt_path`, atomically. Read through GeoRaster, a mosaic is
+// read by window like one raster: only the files a window touches are opened. Where rasters
+// overlap, the later one wins (gdalbuildvrt's order); the finest resolution is kept.
+void WriteMosaicVrt(const std::vector<std::string>& inputs, const std::string& vrt_path);
 
 }  // namespace optinav::geo

@@ -85,6 +85,41 @@ TEST(GeoRaster, WritesAndReadsBackEpsg3857WithRotation) {
   EXPECT_LT(cv::norm(gray, back, cv::NORM_INF), 2.0);
 }
 
+// Two halves of an image as separate GeoTIFFs, joined by a VRT mosaic: read by window, the
+// mosaic gives the pixels of the whole image; a raster in another CRS is refused.
+TEST(GeoRaster, MosaicOfTwoHalvesReadsAsTheWhole) {
+  const auto dir = testing::MakeTempDir("mosaic");
+  const cv::Mat img = cv::imread((testing::SharedDataDir() / "images" / "aero1.jpg").string());
+  ASSERT_FALSE(img.empty());
+  GeoTransform gt;
+  gt.c = {500000.0, 0.25, 0.0, 5560000.0, 0.0, -0.25};
+  const int half = img.cols / 2;
+  GeoTransform right = gt;
+  right.c[0] += half * 0.25;
+  WriteGeoTiff((dir / "whole.tif").string(), img, gt, "EPSG:32633");
+  WriteGeoTiff((dir / "left.tif").string(), img.colRange(0, half).clone(), gt, "EPSG:32633");
+  WriteGeoTiff((dir / "right.tif").string(), img.colRange(half, img.cols).clone(), right,
+               "EPSG:32633");
+  const std::string vrt = (dir / "mosaic.vrt").string();
+  WriteMosaicVrt({(dir / "left.tif").string(), (dir / "right.tif").string()}, vrt);
+  const GeoRaster whole = GeoRaster::Open((dir / "whole.tif").string());
+  const GeoRaster mosaic = GeoRaster::Open(vrt);
+  EXPECT_EQ(mosaic.width(), img.cols);
+  EXPECT_EQ(mosaic.height(), img.rows);
+  EXPECT_EQ(mosaic.transform().c, gt.c);
+  // A window across the seam, and one past the edge.
+  for (const cv::Rect w : {cv::Rect(half - 100, 50, 200, 150), cv::Rect(img.cols - 64, 0, 128, 64)})
+    EXPECT_EQ(cv::norm(whole.ReadGray(w.x, w.y, w.width, w.height),
+                       mosaic.ReadGray(w.x, w.y, w.width, w.height), cv::NORM_INF),
+              0.0);
+  WriteGeoTiff((dir / "other_crs.tif").string(), img, gt, "EPSG:32632");
+  EXPECT_ERROR(WriteMosaicVrt({(dir / "left.tif").string(), (dir / "other_crs.tif").string()},
+                              (dir / "bad.vrt").string()),
+               {.file = "other_crs.tif"}, "is in another CRS than");
+  EXPECT_FALSE(std::filesystem::exists(dir / "bad.vrt"));
+  std::filesystem::remove_all(dir);
+}
+
 TEST(GeoRaster, BadFilesAreClearErrors) {
   const auto dir = testing::MakeTempDir("badtiff");
   // A plain TIFF without georeference.

@@ -1,9 +1,12 @@
 #include "optinav/maploc/map_db.h"
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <functional>
+#include <iterator>
 #include <map>
 #include <mutex>
 #include <thread>
@@ -122,7 +125,13 @@ MapBuildOptions OptionsFromJson(const nlohmann::json& j) {
   return o;
 }
 
-void WriteDatabase(const MapDatabase& m, const std::string& out_path) {
+// Calls `emit` for every tile to write, in order.
+using TileSource = std::function<void(const std::function<void(const MapTile&)>& emit)>;
+
+// Writes m's metadata and the tiles `tiles` emits (default: m.tiles; all of the grid, or a
+// shard's: then meta `shard` says which). A source lets a merge stream parts through.
+void WriteDatabase(const MapDatabase& m, const std::string& out_path, const MapShard& shard,
+                   const TileSource& tiles = {}) {
   const std::string tmp = out_path + ".tmp";
   std::filesystem::remove(tmp);
   {
@@ -157,6 +166,7 @@ void WriteDatabase(const MapDatabase& m, const std::string& out_path) {
           {"build_options", OptionsToJson(m.options).dump()},
           {"complete", "1"},
       };
+      if (!shard.whole()) meta["shard"] = shard.ToString();
       meta["checksum"] = std::to_string(MetaCrc(meta));
       // `complete` is written last, after every tile: a database without it is incomplete.
       meta.erase("complete");
@@ -171,7 +181,7 @@ void WriteDatabase(const MapDatabase& m, const std::string& out_path) {
       Stmt ins{db.Prepare(
           "INSERT INTO tiles VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)")};
       std::vector<float> kp;
-      for (const MapTile& t : m.tiles) {
+      const auto write = [&](const MapTile& t) {
         int k = 1;
         GeometryBytes geometry;
         auto bind_int = [&](int64_t v) {
@@ -214,6 +224,11 @@ void WriteDatabase(const MapDatabase& m, const std::string& out_path) {
         sqlite3_bind_int64(ins.st, k++, CrcValue(Crc32(d.data, d_bytes)));
         db.Check(sqlite3_step(ins.st), "insert tile");
         sqlite3_reset(ins.st);
+      };
+      if (tiles) {
+        tiles(write);
+      } else {
+        for (const MapTile& t : m.tiles) write(t);
       }
     }
     // Written last: a database without it is incomplete.
@@ -316,9 +331,41 @@ MapDatabase PlanMapDatabase(const std::string& ortho_path, const MapBuildOptions
   return m;
 }
 
+std::string MapShard::ToString() const { return fmt::format("{}/{}", index, count); }
+
+std::string MapShard::Check() const {
+  if (count < 1 || index < 0 || index >= count)
+    return fmt::format("shard {}/{} is not I/N with 0 <= I < N", index, count);
+  return "";
+}
+
+MapShard ParseMapShard(const std::string& text, const std::string& flag) {
+  MapShard s;
+  const size_t slash = text.find('/');
+  size_t used_i = 0, used_n = 0;
+  try {
+    if (slash == std::string::npos) throw std::invalid_argument("no slash");
+    s.index = std::stoi(text.substr(0, slash), &used_i);
+    s.count = std::stoi(text.substr(slash + 1), &used_n);
+  } catch (const std::exception&) {
+    used_i = std::string::npos;
+  }
+  if (used_i != slash || slash + 1 + used_n != text.size() || !s.Check().empty())
+    throw Error("'" + text + "' is not I/N with 0 <= I < N (shard I of N, from 0)",
+                {.field = flag});
+  return s;
+}
+
+std::pair<int, int> ShardTileRange(int total, const MapShard& shard) {
+  const auto at = [&](int i) { return static_cast<int>(int64_t{total} * i / shard.count); };
+  return {at(shard.index), at(shard.index + 1)};
+}
+
 MapDatabase BuildMapDatabase(const std::string& ortho_path, const MapBuildOptions& o,
-                             const std::string& out_path) {
+                             const std::string& out_path, const MapShard& shard) {
+  if (const std::string msg = shard.Check(); !msg.empty()) throw Error(msg, {.field = "--shard"});
   MapDatabase m = PlanMapDatabase(ortho_path, o);
+  const auto [first_tile, last_tile] = ShardTileRange(static_cast<int>(m.tiles.size()), shard);
   const double level_scale = m.map_gsd_m / m.feature_gsd_m;  // <= 1
   const int tile_img = std::max(16, static_cast<int>(std::lround(m.tile_px * level_scale)));
   const int n_threads =
@@ -328,17 +375,17 @@ MapDatabase BuildMapDatabase(const std::string& ortho_path, const MapBuildOption
       "features at {:.3f} m/px on {} thread(s)",
       m.width, m.height, m.map_gsd_m, m.cols, m.rows, m.tile_px, m.tile_px * m.map_gsd_m,
       m.feature_gsd_m, n_threads);
-  std::atomic<size_t> next{0};
+  std::atomic<size_t> next{static_cast<size_t>(first_tile)};
   std::mutex error_mutex;
   std::string first_error;
-  ProgressBar progress(m.tiles.size(), "map build");
+  ProgressBar progress(last_tile - first_tile, "map build");
   auto worker = [&] {
     try {
       // GDAL datasets are not thread-safe: one handle per worker.
       const geo::GeoRaster raster = geo::GeoRaster::Open(ortho_path);
       const auto extractor = features::CreateFeatureExtractor(
           {.type = o.feature_type, .max_features = o.max_features});
-      for (size_t i = next++; i < m.tiles.size(); i = next++) {
+      for (size_t i = next++; i < static_cast<size_t>(last_tile); i = next++) {
         {
           std::lock_guard<std::mutex> lock(error_mutex);
           if (!first_error.empty()) return;
@@ -376,11 +423,19 @@ MapDatabase BuildMapDatabase(const std::string& ortho_path, const MapBuildOption
   for (auto& th : pool) th.join();
   progress.Finish();
   if (!first_error.empty()) throw Error("map build failed: " + first_error, {.file = ortho_path});
-  WriteDatabase(m, out_path);
+  if (!shard.whole()) {
+    m.tiles.erase(m.tiles.begin() + last_tile, m.tiles.end());
+    m.tiles.erase(m.tiles.begin(), m.tiles.begin() + first_tile);
+  }
+  WriteDatabase(m, out_path, shard);
   return m;
 }
 
-MapDatabase LoadMapDatabase(const std::string& path) {
+namespace {
+
+// Reads and verifies a database; a part of a sharded build only when `part` is given (its shard
+// returned there), else refused.
+MapDatabase ReadDatabase(const std::string& path, MapShard* part) {
   if (!std::filesystem::is_regular_file(path))
     throw Error("map database not found", {.file = path});
   Db db(path, SQLITE_OPEN_READONLY);
@@ -446,6 +501,18 @@ MapDatabase LoadMapDatabase(const std::string& path) {
     }
     if (m.rows <= 0 || m.cols <= 0 || int64_t{m.rows} * m.cols > 10'000'000)
       throw std::invalid_argument(fmt::format("bad tile grid {} x {}", m.cols, m.rows));
+    if (meta.count("shard")) {
+      const MapShard shard = ParseMapShard(meta.at("shard"), "shard");
+      if (!part) {
+        throw Error(fmt::format("is part {} of a sharded build, not a map; join the parts with "
+                                "`optinav map merge`",
+                                shard.ToString()),
+                    {.file = path, .field = "shard"});
+      }
+      *part = shard;
+    } else if (part) {
+      *part = MapShard{};
+    }
   } catch (const Error&) {
     throw;
   } catch (const std::exception& e) {
@@ -455,13 +522,14 @@ MapDatabase LoadMapDatabase(const std::string& path) {
   const int desc_type = extractor->descriptor_type();
   const int desc_cols = extractor->descriptor_size();
   const size_t desc_bytes = desc_cols * (desc_type == CV_8U ? 1 : 4);
+  const auto [first_tile, last_tile] = ShardTileRange(m.rows * m.cols, part ? *part : MapShard{});
   Stmt q{db.Prepare(
       "SELECT id, row, col, px0, py0, px1, py1, crs_cx, crs_cy, lat_ul, lon_ul, lat_ur, lon_ur,"
       " lat_lr, lon_lr, lat_ll, lon_ll, lat_c, lon_c, padded, n_features, keypoints, descriptors,"
       " geometry_crc, keypoints_crc, descriptors_crc FROM tiles ORDER BY id")};
   int rc;
   while ((rc = sqlite3_step(q.st)) == SQLITE_ROW) {
-    const int position = static_cast<int>(m.tiles.size());
+    const int position = first_tile + static_cast<int>(m.tiles.size());
     MapTile t;
     int k = 0;
     GeometryBytes geometry;
@@ -544,15 +612,94 @@ MapDatabase LoadMapDatabase(const std::string& path) {
       std::memcpy(t.descriptors.data, desc, d_bytes);
     }
     m.tiles.push_back(std::move(t));
-    if (static_cast<int64_t>(m.tiles.size()) > int64_t{m.rows} * m.cols) break;
+    if (static_cast<int64_t>(m.tiles.size()) > last_tile - first_tile) break;
   }
   db.Check(rc, "read tiles");
-  if (static_cast<int>(m.tiles.size()) != m.rows * m.cols) {
-    throw Error(
-        fmt::format("map database has {} tiles, expected {} x {}", m.tiles.size(), m.cols, m.rows),
-        {.file = path});
+  if (static_cast<int>(m.tiles.size()) != last_tile - first_tile) {
+    throw Error(part && !part->whole()
+                    ? fmt::format("part {} has {} tiles, expected {} ({} - {})", part->ToString(),
+                                  m.tiles.size(), last_tile - first_tile, first_tile, last_tile - 1)
+                    : fmt::format("map database has {} tiles, expected {} x {}", m.tiles.size(),
+                                  m.cols, m.rows),
+                {.file = path});
   }
   return m;
+}
+
+}  // namespace
+
+MapDatabase LoadMapDatabase(const std::string& path) { return ReadDatabase(path, nullptr); }
+
+MapMergeSummary MergeMapParts(const std::vector<std::string>& parts, const std::string& out_path) {
+  if (parts.empty()) throw Error("no parts to merge", {.field = "PARTS"});
+  // Pass 1: every part verified (checksums), its metadata kept; the tiles are read again in pass
+  // 2, one part at a time, so the merge holds one part in memory, not the map.
+  std::vector<std::pair<MapShard, MapDatabase>> read;
+  for (const std::string& path : parts) {
+    MapShard shard;
+    MapDatabase m = ReadDatabase(path, &shard);
+    m.tiles.clear();
+    m.tiles.shrink_to_fit();
+    read.emplace_back(shard, std::move(m));
+  }
+  const int count = read[0].first.count;
+  std::vector<int> by_index(count, -1);  // shard -> position in parts
+  const MapDatabase& ref = read[0].second;
+  const std::string ref_options = OptionsToJson(ref.options).dump();
+  for (size_t k = 0; k < read.size(); ++k) {
+    const auto& [shard, m] = read[k];
+    if (shard.count != count) {
+      throw Error(fmt::format("is shard {} of another split than {} (shard {})", shard.ToString(),
+                              parts[0], read[0].first.ToString()),
+                  {.file = parts[k], .field = "shard"});
+    }
+    // Parts of one build: the same raster, grid and options (the orthophoto's path may differ, a
+    // mosaic written beside each part; the first part's is kept).
+    const char* differs = m.crs_wkt != ref.crs_wkt                               ? "crs_wkt"
+                          : m.transform.c != ref.transform.c                     ? "geotransform"
+                          : m.width != ref.width || m.height != ref.height       ? "width"
+                          : m.rows != ref.rows || m.cols != ref.cols             ? "rows"
+                          : m.tile_px != ref.tile_px || m.step_px != ref.step_px ? "tile_px"
+                          : m.map_gsd_m != ref.map_gsd_m || m.feature_gsd_m != ref.feature_gsd_m
+                              ? "map_gsd_m"
+                          : OptionsToJson(m.options).dump() != ref_options ? "build_options"
+                                                                           : nullptr;
+    if (differs) {
+      throw Error("is a part of another build than " + parts[0] + " (" + differs + " differs)",
+                  {.file = parts[k], .field = differs});
+    }
+    if (m.ortho_path != ref.ortho_path)
+      spdlog::warn("map merge: {} was built from {}, {} from {}; the merged map names the first",
+                   parts[0], ref.ortho_path, parts[k], m.ortho_path);
+    if (by_index[shard.index] >= 0) {
+      throw Error(fmt::format("shard {} is given twice (also {})", shard.ToString(),
+                              parts[by_index[shard.index]]),
+                  {.file = parts[k], .field = "shard"});
+    }
+    by_index[shard.index] = static_cast<int>(k);
+  }
+  std::string missing;
+  for (int i = 0; i < count; ++i)
+    if (by_index[i] < 0) missing += (missing.empty() ? "" : ", ") + fmt::format("{}/{}", i, count);
+  if (!missing.empty())
+    throw Error("shards missing: " + missing + " (every shard of the build is needed)",
+                {.field = "PARTS"});
+  MapMergeSummary summary;
+  summary.db = ref;
+  WriteDatabase(ref, out_path, MapShard{}, [&](const std::function<void(const MapTile&)>& emit) {
+    for (int i = 0; i < count; ++i) {
+      MapShard shard;
+      const MapDatabase part = ReadDatabase(parts[by_index[i]], &shard);
+      if (shard.index != i)  // changed since pass 1
+        throw Error("changed while merging", {.file = parts[by_index[i]]});
+      for (const MapTile& t : part.tiles) {
+        emit(t);
+        ++summary.tiles;
+        summary.features += t.keypoints.size();
+      }
+    }
+  });
+  return summary;
 }
 
 MapCheckReport CheckMapDatabase(const std::string& path) {

@@ -10,6 +10,7 @@
 #include <array>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -71,10 +72,40 @@ struct MapDatabase {
   Eigen::Vector2d PixelToCrs(const Eigen::Vector2d& px) const { return transform.PixelToCrs(px); }
 };
 
+// A sharded build (`map build --shard I/N`): shard `index` of `count` holds the tiles
+// [total x index / count, total x (index + 1) / count) of the grid (contiguous rows, so a shard
+// reads one band of the orthophoto). index is 0-based.
+struct MapShard {
+  int index = 0, count = 1;
+  bool whole() const { return count == 1; }
+  std::string ToString() const;  // "I/N"
+  std::string Check() const;     // "" when valid
+};
+// "I/N" (0 <= I < N); throws Error (field: `flag`) otherwise.
+MapShard ParseMapShard(const std::string& text, const std::string& flag = "--shard");
+// The tile indices [first, last) of a shard of a grid of `total` tiles.
+std::pair<int, int> ShardTileRange(int total, const MapShard& shard);
+
 // Builds the database from an orthophoto (parallel over tiles, progress bar on a terminal) and
 // writes it atomically to `out_path`. Throws Error on bad input (file, field) or I/O failure.
+// With a shard other than the whole, only its tiles are built and written: a part (meta `shard`
+// = "I/N", the same format and checksums), which LoadMapDatabase refuses and MergeMapParts joins;
+// the returned database then holds only those tiles.
 MapDatabase BuildMapDatabase(const std::string& ortho_path, const MapBuildOptions& options,
-                             const std::string& out_path);
+                             const std::string& out_path, const MapShard& shard = {});
+
+// Joins the parts of a sharded build (every shard of one N exactly once, any order; each part
+// verified as LoadMapDatabase verifies a map) into one database at `out_path`, written
+// atomically with fresh checksums: the same tiles and features as the unsharded build (the same
+// file, byte for byte, when the parts name the same orthophoto). Parts are streamed through one
+// at a time: the merge holds one part's tiles in memory, not the map's. Throws Error naming the
+// part at fault (missing shards, a shard twice, another build's or split's part).
+struct MapMergeSummary {
+  MapDatabase db;  // the merged map's metadata (no tiles)
+  size_t tiles = 0, features = 0;
+};
+MapMergeSummary MergeMapParts(const std::vector<std::string>& part_paths,
+                              const std::string& out_path);
 
 // Loads a database, verifying the metadata's and every tile's checksums; throws Error naming the
 // file if it is not one, is incomplete, has another format version, or is damaged (naming the
