@@ -97,8 +97,14 @@ std::string MapLocateOptions::Check() const {
 MapLocateRun::MapLocateRun(const MapLocateOptions& options) : options_(options) {
   if (const std::string msg = options.Check(); !msg.empty()) throw Error(msg);
   db_ = std::make_unique<maploc::MapDatabase>(maploc::LoadMapDatabase(options.map_path));
+  if (!options.model_path.empty() && db_->feature_type != features::FeatureType::kXFeat) {
+    throw Error("--model is for maps built with --features xfeat; this map has " +
+                    features::FeatureTypeName(db_->feature_type) + " features",
+                {.field = "--model"});
+  }
   maploc::LocateOptions lo;
   lo.ortho_path = options.ortho_path;
+  lo.model_path = options.model_path;
   lo.hfov_deg = options.hfov_deg;
   if (!options.camera_path.empty()) lo.camera = LoadCamera(options.camera_path);
   locator_ = std::make_unique<maploc::Locator>(*db_, lo);
