@@ -282,7 +282,7 @@ std::vector<cv::DMatch> MatchMutual(const cv::Mat& query, const cv::Mat& train, 
   // Unit vectors: |a - b|^2 = 2 - 2 a.b, so one matrix product gives every distance.
   cv::Mat sim;
   cv::gemm(query, train, 1.0, cv::noArray(), 0.0, sim, cv::GEMM_2_T);
-  std::vector<int> best_query(train.cols > 0 ? train.rows : 0, -1);
+  std::vector<int> best_query(train.rows, -1);
   std::vector<float> best_query_sim(train.rows, -2.f);
   for (int q = 0; q < sim.rows; ++q) {
     const float* row = sim.ptr<float>(q);
