@@ -15,9 +15,12 @@
 #include <algorithm>
 #include <cstdlib>
 #include <filesystem>
+#include <map>
 #include <random>
 
 #include <benchmark/benchmark.h>
+#include <opencv2/core/utility.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "bench_data.h"
@@ -25,6 +28,7 @@
 #include "optinav/maploc/locator.h"
 #include "optinav/sim/synthetic_ortho.h"
 #include "optinav/util/statistics.h"
+#include "optinav/util/timer.h"
 
 namespace {
 
@@ -323,6 +327,125 @@ BENCHMARK(BM_Perspective)
     ->Args({kPriorHeading, 640, 480, 10})
     ->Unit(benchmark::kMillisecond)
     ->Iterations(1);
+
+// Issue 24: the methods side by side on BM_Perspective's 256x256 frames (same seeds, same
+// metadata): features alone on an ORB, a SIFT and an XFeat map of NAIP 2009 (same tiling),
+// orientation correlation alone, and `auto` (Locator::Locate: features first, then correlation)
+// on the ORB map and on the XFeat map. Args: method, mode, frames per year, OpenCV threads (for
+// the XFeat forward pass; run under `taskset -c 0` for one core).
+enum Method { kOrb, kSift, kXFeat, kCorrelation, kAutoOrb, kAutoXFeat };
+
+const char* MethodName(int method) {
+  static const char* const names[] = {"ORB features",   "SIFT features",
+                                      "XFeat features", "orientation correlation",
+                                      "auto (ORB map)", "auto (XFeat map)"};
+  return names[method];
+}
+
+const maploc::MapDatabase& NaipMap(features::FeatureType type) {
+  static std::map<features::FeatureType, maploc::MapDatabase> maps;
+  auto it = maps.find(type);
+  if (it == maps.end()) {
+    maploc::MapBuildOptions o;
+    o.frame_width = o.frame_height = 256;
+    o.hfov_deg = 90;
+    o.altitude_m = 640;
+    o.feature_type = type;
+    const std::string name = "naip2009_" + features::FeatureTypeName(type) + ".db";
+    it = maps.emplace(type, maploc::BuildMapDatabase(
+                                (SharedData() / "geo/naip/naip_20090818.tif").string(), o,
+                                (WorkDir() / name).string()))
+             .first;
+  }
+  return it->second;
+}
+
+void BM_PerspectiveMethods(benchmark::State& state) {
+  const int method = static_cast<int>(state.range(0));
+  const int mode = static_cast<int>(state.range(1));
+  const int per_year = static_cast<int>(state.range(2));
+  const int threads = static_cast<int>(state.range(3));
+  cv::setNumThreads(threads);
+  const features::FeatureType type = method == kSift ? features::FeatureType::kSift
+                                     : method == kXFeat || method == kAutoXFeat
+                                         ? features::FeatureType::kXFeat
+                                         : features::FeatureType::kOrb;
+  const maploc::MapDatabase& db = NaipMap(type);
+  maploc::PerspectiveFrameOptions fo;
+  fo.width = fo.height = 256;
+  std::vector<maploc::PerspectiveFrame> frames;
+  for (const auto& [year, seed] : {std::pair{"20120731", 1812}, std::pair{"20170827", 1817}}) {
+    const geo::GeoRaster flight = geo::GeoRaster::Open(
+        (SharedData() / "geo/naip" / ("naip_" + std::string(year) + ".tif")).string());
+    for (maploc::PerspectiveFrame& f : maploc::MakePerspectiveFrames(flight, per_year, fo, seed))
+      frames.push_back(std::move(f));
+  }
+  maploc::Locator locator(db);
+  auto locate = [&](const maploc::PerspectiveFrame& f) {
+    const maploc::Prior p = GivenPrior(f, mode);
+    switch (method) {
+      case kOrb:
+      case kSift:
+      case kXFeat:
+        return locator.LocateByFeatures(f.image, p);
+      case kCorrelation:
+        return locator.LocateByOrientationCorrelation(f.image, p);
+      default:
+        return locator.Locate(f.image, p);
+    }
+  };
+  locate(frames[0]);  // warm caches, indexes and the network
+  Medians m;
+  std::vector<double> errors;
+  int within = 0;
+  std::map<std::string, int> by;
+  for (auto _ : state) {
+    for (const maploc::PerspectiveFrame& f : frames) {
+      const maploc::LocateResult r = locate(f);
+      m.Add(r);
+      if (!r.localized) continue;
+      ++by[r.method];
+      const double e = geo::GeodesicInverse(r.latlon, f.latlon).distance_m;
+      errors.push_back(e);
+      within += e <= 25.0;
+    }
+  }
+  m.Report(state);
+  const double n = static_cast<double>(frames.size());
+  state.counters["within_25m_pct"] = 100.0 * within / n;
+  state.counters["median_error_m"] = errors.empty() ? -1 : Median(errors);
+  std::printf(
+      "[methods, %s, %s, %d thread(s)] %d frames: within 25 m %d (%.1f %%), median error %.1f m, "
+      "localized %zu (features %d, correlation %d), median %.1f ms per frame (extraction %.1f)\n",
+      MethodName(method), ModeName(mode), threads, static_cast<int>(n), within, 100.0 * within / n,
+      errors.empty() ? -1.0 : Median(errors), errors.size(), by["features"],
+      by["orientation-correlation"], Median(m.total), Median(m.extraction));
+}
+BENCHMARK(BM_PerspectiveMethods)
+    ->ArgsProduct({{kOrb, kSift, kXFeat, kCorrelation, kAutoOrb, kAutoXFeat},
+                   {kPriorHeading, kPriorOnly},
+                   {25},
+                   {1}})
+    ->ArgsProduct({{kOrb, kSift, kXFeat, kCorrelation, kAutoOrb, kAutoXFeat}, {kGlobal}, {10}, {1}})
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1);
+
+// The XFeat forward pass alone (640x640 input), with 1 and 2 OpenCV threads.
+void BM_XFeatForward(benchmark::State& state) {
+  cv::setNumThreads(static_cast<int>(state.range(0)));
+  const auto ex = features::CreateFeatureExtractor({.type = features::FeatureType::kXFeat});
+  const cv::Mat img =
+      cv::imread((SharedData() / "images/graf1.png").string(), cv::IMREAD_GRAYSCALE);
+  ex->Extract(img);  // first pass allocates
+  std::vector<double> ms;
+  for (auto _ : state) {
+    Timer t;
+    benchmark::DoNotOptimize(ex->Extract(img));
+    ms.push_back(t.ElapsedSeconds() * 1e3);
+  }
+  state.counters["median_ms"] = Median(ms);
+}
+BENCHMARK(BM_XFeatForward)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->Iterations(10);
 
 }  // namespace
 

@@ -104,6 +104,11 @@ std::string MapLocateOptions::Check() const {
 MapLocateRun::MapLocateRun(const MapLocateOptions& options) : options_(options) {
   if (const std::string msg = options.Check(); !msg.empty()) throw Error(msg);
   db_ = std::make_unique<maploc::MapDatabase>(maploc::LoadMapDatabase(options.map_path));
+  if (!options.model_path.empty() && db_->feature_type != features::FeatureType::kXFeat) {
+    throw Error("--model is for maps built with --features xfeat; this map has " +
+                    features::FeatureTypeName(db_->feature_type) + " features",
+                {.field = "--model"});
+  }
   MakeLocator(options.hfov_deg);
   prior_ = PriorOf(options);
 }
@@ -111,6 +116,7 @@ MapLocateRun::MapLocateRun(const MapLocateOptions& options) : options_(options) 
 void MapLocateRun::MakeLocator(double hfov_deg) {
   maploc::LocateOptions lo;
   lo.ortho_path = options_.ortho_path;
+  lo.model_path = options_.model_path;
   lo.hfov_deg = hfov_deg;
   if (!options_.camera_path.empty()) lo.camera = LoadCamera(options_.camera_path);
   locator_.reset();  // it refers to db_; the new one replaces it

@@ -24,6 +24,7 @@ std::optional<LocateMethod> ParseLocateMethod(const std::string& name);
 struct MapLocateOptions {
   std::string map_path;    // map database (SQLite)
   std::string ortho_path;  // orthophoto, if moved since the build (orientation correlation)
+  std::string model_path;  // XFeat network of an xfeat map ("" = the default beside the data)
   LocateMethod method = LocateMethod::kAuto;
   std::optional<geo::LatLon> prior;  // approximate position
   double radius_m = 500;             // prior radius, also around each predicted position

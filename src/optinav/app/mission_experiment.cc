@@ -205,6 +205,7 @@ std::unique_ptr<Setup> PrepareSetup(const MissionExperimentOptions& opt) {
       geo::GeoRaster::Open(opt.frames_from.empty() ? s->ortho : opt.frames_from));
   maploc::LocateOptions lo;
   lo.ortho_path = s->ortho;
+  lo.model_path = opt.model_path;
   s->mission = std::make_unique<nav::Mission>(s->db, *s->frames, lo);
   for (int i = 0; i < opt.runs; ++i) {
     if (opt.start) {

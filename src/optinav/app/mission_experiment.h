@@ -27,6 +27,7 @@ struct MissionExperimentOptions {
   double min_distance_m = 3000, margin_m = 300;
   std::string frames_from;  // orthophoto the frames are cut from; empty: the map's own
   std::string ortho_path;   // the map's orthophoto when moved since the build; empty: as recorded
+  std::string model_path;   // XFeat network of an XFeat map; empty: the default
   std::string out_dir;
   bool force = false;  // write into a non-empty output folder
   std::string weather = "none";

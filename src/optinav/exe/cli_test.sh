@@ -133,6 +133,33 @@ grep -q '"localized": true' "$WORK/out.txt" || fail "rendered 2017 frame not loc
 lat=$(grep '"lat"' "$WORK/out.txt" | tr -dc '0-9.-'); lon=$(grep '"lon"' "$WORK/out.txt" | tr -dc '0-9.-')
 awk -v a="$lat" -v b="$lon" 'BEGIN { d = sqrt(((a - 47.0186) * 111200)^2 + ((b + 99.1526) * 75800)^2);
   exit !(d < 25) }' || fail "rendered frame localized $lat,$lon, more than 25 m from 47.0186,-99.1526"
+# XFeat features (issue 24): a map built with the learned extractor; a 2009 frame by its features,
+# the 2017 frame through auto (features, then orientation correlation).
+expect_ok "map build xfeat" "$BIN" map build --ortho "$NAIP/naip_20090818.tif" --altitude 640 \
+  --hfov 90 --frame-size 256x256 --features xfeat --model "$DATA/models/xfeat_640x640.onnx" \
+  --out "$WORK/naip_xfeat.db"
+expect_ok "map info xfeat" "$BIN" map info "$WORK/naip_xfeat.db" --json
+grep -q '"xfeat"' "$WORK/out.txt" || fail "map info does not name the xfeat features"
+expect_ok "map render 2009" "$BIN" map render --ortho "$NAIP/naip_20090818.tif" --at 47.0186,-99.1526 \
+  --heading 35 --frame-size 256x256 --out "$WORK/f2009.png"
+expect_ok "locate xfeat features" "$BIN" map locate --map "$WORK/naip_xfeat.db" \
+  --model "$DATA/models/xfeat_640x640.onnx" --image "$WORK/f2009.png" --prior 47.0195,-99.1510 \
+  --radius 250 --heading 30 --method features --json
+grep -q '"method": "features"' "$WORK/out.txt" && grep -q '"localized": true' "$WORK/out.txt" \
+  || fail "2009 frame not localized by XFeat features: $(grep reason "$WORK/out.txt")"
+expect_ok "locate xfeat map auto" "$BIN" map locate --map "$WORK/naip_xfeat.db" \
+  --model "$DATA/models/xfeat_640x640.onnx" --image "$WORK/f2017.png" --prior 47.0195,-99.1510 \
+  --radius 250 --heading 30 --json
+grep -q '"localized": true' "$WORK/out.txt" || fail "2017 frame not localized on the xfeat map"
+expect_error "map build xfeat missing model" "XFeat model not found" "$BIN" map build \
+  --ortho "$NAIP/naip_20090818.tif" --altitude 640 --hfov 90 --frame-size 256x256 \
+  --features xfeat --model "$WORK/none.onnx" --out "$WORK/x.db"
+[[ ! -e "$WORK/x.db" ]] || fail "failed xfeat build left a database"
+expect_error "map build --model without xfeat" "--model is for --features xfeat" "$BIN" map build \
+  --ortho "$NAIP/naip_20090818.tif" --altitude 640 --hfov 90 --frame-size 256x256 \
+  --model "$WORK/none.onnx" --out "$WORK/x.db"
+expect_error "locate --model on an orb map" "--model is for maps built with --features xfeat" \
+  "$BIN" map locate --map "$WORK/naip.db" --model "$WORK/none.onnx" --image "$WORK/f2009.png"
 expect_error "render outside" "outside the orthophoto" "$BIN" map render \
   --ortho "$NAIP/naip_20170827.tif" --at 10,10 --out "$WORK/o.png"
 # True perspective (issue 18): attitude and altitude; an acceptance set with its CSVs.

@@ -39,7 +39,8 @@ void AddBuild(CLI::App& app, BuildFlags& f) {
       ->capture_default_str();
   app.add_option("--overlap", o.overlap, "fraction shared by neighbouring tiles")
       ->capture_default_str();
-  app.add_option("--features", f.features, "orb|sift|brisk")->capture_default_str();
+  app.add_option("--features", f.features, "orb|sift|brisk|xfeat")->capture_default_str();
+  app.add_option("--model", o.model_path, "XFeat network (.onnx; default: shared data's)");
   app.add_option("--max-features", o.max_features, "features per tile")->capture_default_str();
   app.add_option("--threads", o.threads, "worker threads (0: all cores)")->capture_default_str();
   cli::OutputFile(app.add_option("--out", f.out, "output database (SQLite)"))->required();
@@ -55,9 +56,11 @@ void AddBuild(CLI::App& app, BuildFlags& f) {
 int RunBuild(BuildFlags f) {
   const auto type = features::ParseFeatureType(f.features);
   if (!type)
-    throw cli::UsageError("unknown feature type '" + f.features + "' (orb|sift|brisk)",
+    throw cli::UsageError("unknown feature type '" + f.features + "' (orb|sift|brisk|xfeat)",
                           "--features");
   f.options.feature_type = *type;
+  if (!f.options.model_path.empty() && *type != features::FeatureType::kXFeat)
+    throw cli::UsageError("--model is for --features xfeat", "--model");
   ParseFrameSize(f.frame_size, "--frame-size", 0, &f.options.frame_width, &f.options.frame_height);
   cli::ThrowIfInvalid(f.options.Check(), "");
   if (f.orthos.empty() && f.ortho_list.empty())
@@ -156,6 +159,7 @@ void AddLocate(CLI::App& app, LocateFlags& f) {
   app.add_option("--hfov", o.hfov_deg, "horizontal field of view (deg; default: the map's)");
   app.add_option("--camera", o.camera_path, "EuRoC sensor.yaml: intrinsics and distortion");
   app.add_option("--ortho", o.ortho_path, "orthophoto path if moved since the build (for oc)");
+  app.add_option("--model", o.model_path, "XFeat network of an xfeat map (default: shared data's)");
   app.add_option("--method", f.method, "auto|features|oc")->capture_default_str();
   app.add_flag("--json", f.json, "print the result as JSON");
 }

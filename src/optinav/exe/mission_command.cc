@@ -36,6 +36,8 @@ void AddMissionFlags(CLI::App& app, app::MissionExperimentOptions& a, MissionFla
   app.add_option("--frames-from", a.frames_from,
                  "synthesise frames from another orthophoto of the area (e.g. a later year)");
   app.add_option("--ortho", a.ortho_path, "the map's orthophoto, if moved since the build");
+  app.add_option("--model", a.model_path,
+                 "XFeat network (.onnx) of an xfeat map (default: shared data)");
   app.add_option("--weather", a.weather, "none | fog:50 | dust:50 | ...")->capture_default_str();
   app.add_option("--min-distance", a.min_distance_m, "random start/target: at least this far (m)")
       ->capture_default_str();

@@ -6,6 +6,8 @@
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "optinav/features/xfeat.h"
+
 namespace optinav::features {
 namespace {
 
@@ -75,6 +77,7 @@ std::optional<FeatureType> ParseFeatureType(const std::string& name) {
   if (name == "orb") return FeatureType::kOrb;
   if (name == "sift") return FeatureType::kSift;
   if (name == "brisk") return FeatureType::kBrisk;
+  if (name == "xfeat") return FeatureType::kXFeat;
   return std::nullopt;
 }
 
@@ -86,8 +89,24 @@ std::string FeatureTypeName(FeatureType type) {
       return "sift";
     case FeatureType::kBrisk:
       return "brisk";
+    case FeatureType::kXFeat:
+      return "xfeat";
   }
   return "?";
+}
+
+DescriptorFormat DescriptorFormatOf(FeatureType type) {
+  switch (type) {
+    case FeatureType::kOrb:
+      return {CV_8U, 32, cv::NORM_HAMMING};
+    case FeatureType::kBrisk:
+      return {CV_8U, 64, cv::NORM_HAMMING};
+    case FeatureType::kSift:
+      return {CV_32F, 128, cv::NORM_L2};
+    case FeatureType::kXFeat:
+      return {CV_32F, kXFeatDescriptorSize, cv::NORM_L2};
+  }
+  return {};
 }
 
 std::string ExtractorOptions::Check() const {
@@ -97,12 +116,15 @@ std::string ExtractorOptions::Check() const {
   if (orb_fast_threshold < 1 || orb_fast_threshold > 100)
     return "orb_fast_threshold must be in [1, 100]";
   if (orb_levels < 1 || orb_levels > 16) return "orb_levels must be in [1, 16]";
+  if (!(xfeat_scale >= 0 && xfeat_scale <= 8)) return "xfeat_scale must be in [0, 8]";
+  if (threads < 0) return "threads must be >= 0";
   return "";
 }
 
 std::unique_ptr<FeatureExtractor> CreateFeatureExtractor(const ExtractorOptions& options) {
   if (options.type == FeatureType::kSift) return std::make_unique<SiftExtractor>(options);
   if (options.type == FeatureType::kBrisk) return std::make_unique<BriskExtractor>(options);
+  if (options.type == FeatureType::kXFeat) return CreateXFeatExtractor(options);
   return std::make_unique<OrbExtractor>(options);
 }
 
@@ -146,6 +168,41 @@ Features ExtractAffineSimulated(const FeatureExtractor& extractor, const cv::Mat
       out.keypoints.insert(out.keypoints.end(), f.keypoints.begin(), f.keypoints.end());
       if (!f.descriptors.empty()) descriptors.push_back(f.descriptors);
     }
+  }
+  if (!descriptors.empty()) cv::vconcat(descriptors, out.descriptors);
+  return out;
+}
+
+Features ExtractRotated(const FeatureExtractor& extractor, const cv::Mat& gray, const cv::Mat& mask,
+                        const std::vector<double>& angles_rad) {
+  Features out;
+  out.norm = extractor.norm();
+  std::vector<cv::Mat> descriptors;
+  const cv::Mat valid = mask.empty() ? cv::Mat(gray.size(), CV_8U, cv::Scalar(255)) : mask;
+  const cv::Point2d centre((gray.cols - 1) / 2.0, (gray.rows - 1) / 2.0);
+  for (const double angle : angles_rad) {
+    const double c = std::cos(angle), s = std::sin(angle);
+    const int w = static_cast<int>(std::ceil(std::abs(c) * gray.cols + std::abs(s) * gray.rows));
+    const int h = static_cast<int>(std::ceil(std::abs(s) * gray.cols + std::abs(c) * gray.rows));
+    // view = R (image - centre) + view centre.
+    const cv::Point2d vc((w - 1) / 2.0, (h - 1) / 2.0);
+    const cv::Matx23d a(c, -s, vc.x - (c * centre.x - s * centre.y), s, c,
+                        vc.y - (s * centre.x + c * centre.y));
+    cv::Mat view, view_mask;
+    cv::warpAffine(gray, view, a, cv::Size(w, h), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+    cv::warpAffine(valid, view_mask, a, cv::Size(w, h), cv::INTER_NEAREST, cv::BORDER_CONSTANT);
+    // Keep detections off the rotated border, where the edge itself looks like structure.
+    cv::erode(view_mask, view_mask, cv::Mat(), cv::Point(-1, -1), 3);
+    Features f = extractor.Extract(view, view_mask);
+    cv::Matx23d inv;
+    cv::invertAffineTransform(a, inv);
+    for (auto& kp : f.keypoints) {
+      const cv::Point2f p = kp.pt;
+      kp.pt = cv::Point2f(static_cast<float>(inv(0, 0) * p.x + inv(0, 1) * p.y + inv(0, 2)),
+                          static_cast<float>(inv(1, 0) * p.x + inv(1, 1) * p.y + inv(1, 2)));
+    }
+    out.keypoints.insert(out.keypoints.end(), f.keypoints.begin(), f.keypoints.end());
+    if (!f.descriptors.empty()) descriptors.push_back(f.descriptors);
   }
   if (!descriptors.empty()) cv::vconcat(descriptors, out.descriptors);
   return out;
@@ -215,6 +272,58 @@ std::vector<cv::DMatch> MatchWithRatio(const cv::Mat& query, const cv::Mat& trai
   std::sort(out.begin(), out.end(),
             [](const cv::DMatch& a, const cv::DMatch& b) { return a.distance < b.distance; });
   return out;
+}
+
+std::vector<cv::DMatch> MatchMutual(const cv::Mat& query, const cv::Mat& train, float ratio,
+                                    float max_distance) {
+  std::vector<cv::DMatch> out;
+  if (query.empty() || train.empty()) return out;
+  CV_Assert(query.type() == CV_32F && train.type() == CV_32F && query.cols == train.cols);
+  // Unit vectors: |a - b|^2 = 2 - 2 a.b, so one matrix product gives every distance.
+  cv::Mat sim;
+  cv::gemm(query, train, 1.0, cv::noArray(), 0.0, sim, cv::GEMM_2_T);
+  std::vector<int> best_query(train.rows, -1);
+  std::vector<float> best_query_sim(train.rows, -2.f);
+  for (int q = 0; q < sim.rows; ++q) {
+    const float* row = sim.ptr<float>(q);
+    for (int t = 0; t < sim.cols; ++t) {
+      if (row[t] > best_query_sim[t]) {
+        best_query_sim[t] = row[t];
+        best_query[t] = q;
+      }
+    }
+  }
+  auto distance = [](float s) { return std::sqrt(std::max(0.f, 2.f - 2.f * s)); };
+  for (int q = 0; q < sim.rows; ++q) {
+    const float* row = sim.ptr<float>(q);
+    float s1 = -2.f, s2 = -2.f;
+    int t1 = -1;
+    for (int t = 0; t < sim.cols; ++t) {
+      if (row[t] > s2) {
+        if (row[t] > s1) {
+          s2 = s1;
+          s1 = row[t];
+          t1 = t;
+        } else {
+          s2 = row[t];
+        }
+      }
+    }
+    if (t1 < 0 || best_query[t1] != q) continue;
+    const float d1 = distance(s1);
+    if (d1 > max_distance) continue;
+    if (sim.cols > 1 && !(d1 < ratio * distance(s2))) continue;
+    out.emplace_back(q, t1, d1);
+  }
+  std::sort(out.begin(), out.end(),
+            [](const cv::DMatch& a, const cv::DMatch& b) { return a.distance < b.distance; });
+  return out;
+}
+
+std::vector<cv::DMatch> MatchFeatures(FeatureType type, const cv::Mat& query, const cv::Mat& train,
+                                      float ratio) {
+  if (type == FeatureType::kXFeat) return MatchMutual(query, train, ratio);
+  return MatchWithRatio(query, train, DescriptorFormatOf(type).norm, ratio);
 }
 
 std::string HomographyOptions::Check() const {

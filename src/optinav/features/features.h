@@ -12,9 +12,19 @@
 
 namespace optinav::features {
 
-enum class FeatureType { kOrb, kSift, kBrisk };
-std::optional<FeatureType> ParseFeatureType(const std::string& name);  // orb | sift | brisk
+// kXFeat: the learned XFeat detector/descriptor (features/xfeat.h), run by OpenCV's DNN module.
+enum class FeatureType { kOrb, kSift, kBrisk, kXFeat };
+std::optional<FeatureType> ParseFeatureType(const std::string& name);  // orb|sift|brisk|xfeat
 std::string FeatureTypeName(FeatureType type);
+
+// What a feature type's descriptors look like, known without building an extractor (an XFeat
+// extractor loads its network).
+struct DescriptorFormat {
+  int type = CV_8U;             // CV_8U (binary) or CV_32F
+  int size = 32;                // columns per descriptor
+  int norm = cv::NORM_HAMMING;  // or cv::NORM_L2 (float)
+};
+DescriptorFormat DescriptorFormatOf(FeatureType type);
 
 struct Features {
   std::vector<cv::KeyPoint> keypoints;
@@ -39,9 +49,16 @@ struct ExtractorOptions {
   int max_features = 1024;      // strongest N kept
   int orb_fast_threshold = 12;  // lower than OpenCV's 20: aerial imagery is low in contrast
   int orb_levels = 8;           // pyramid levels (scale factor 1.2 each)
-  std::string Check() const;    // "" when valid
+  // XFeat only: the network file ("" = DefaultXFeatModelPath()), the image-to-network resampling
+  // (network px per image px; 0 = fit the image into the network's input) and OpenCV's thread
+  // count for the forward pass (0 = OpenCV's default, every core the process may use).
+  std::string model_path;
+  double xfeat_scale = 0;
+  int threads = 0;
+  std::string Check() const;  // "" when valid
 };
 
+// Throws Error (naming the file) when an XFeat network cannot be loaded or is not XFeat.
 std::unique_ptr<FeatureExtractor> CreateFeatureExtractor(const ExtractorOptions& options);
 
 // Affine-simulated extraction (the idea of ASIFT, Morel and Yu 2009): the image is also seen
@@ -51,10 +68,31 @@ std::unique_ptr<FeatureExtractor> CreateFeatureExtractor(const ExtractorOptions&
 Features ExtractAffineSimulated(const FeatureExtractor& extractor, const cv::Mat& gray,
                                 double max_tilt);
 
+// Extraction from rotated copies of the image, for a detector/descriptor that is not rotation
+// invariant (XFeat): the image (and mask) is turned by each angle (radians, counter-clockwise as
+// seen on screen: image x right, y down, so the rotation [cos -sin; sin cos]) about its centre
+// onto a canvas that holds it whole, and the features of every copy are mapped back into the
+// original image. Known heading: one angle that brings the image to the map's orientation;
+// unknown: a few spread over the circle.
+Features ExtractRotated(const FeatureExtractor& extractor, const cv::Mat& gray, const cv::Mat& mask,
+                        const std::vector<double>& angles_rad);
+
 // k = 2 nearest neighbours and Lowe's ratio test; returns query -> train matches sorted by
 // distance. Empty when either side is empty.
 std::vector<cv::DMatch> MatchWithRatio(const cv::Mat& query, const cv::Mat& train, int norm,
                                        float ratio = 0.8f);
+
+// Mutual nearest neighbours for L2-normalised float descriptors (XFeat): a pair is kept when each
+// is the other's nearest, the nearest is `ratio` times closer than the second nearest, and the
+// distance is at most `max_distance` (for unit vectors d = sqrt(2 - 2 cos)). Returns query ->
+// train matches sorted by distance.
+std::vector<cv::DMatch> MatchMutual(const cv::Mat& query, const cv::Mat& train, float ratio = 0.9f,
+                                    float max_distance = 0.8f);
+
+// The matcher a feature type is meant for: MatchMutual (with `ratio`) for XFeat, else
+// MatchWithRatio.
+std::vector<cv::DMatch> MatchFeatures(FeatureType type, const cv::Mat& query, const cv::Mat& train,
+                                      float ratio);
 
 struct HomographyOptions {
   double reprojection_threshold_px = 4.0;

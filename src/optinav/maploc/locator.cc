@@ -265,6 +265,9 @@ struct Attempt {
 
 std::string LocateOptions::Check() const {
   if (!(ratio > 0 && ratio <= 1)) return "ratio must be in (0, 1]";
+  if (!(xfeat_ratio > 0 && xfeat_ratio <= 1)) return "xfeat_ratio must be in (0, 1]";
+  if (xfeat_threads < 0) return "xfeat_threads must be >= 0";
+  if (xfeat_rotations < 1 || xfeat_rotations > 36) return "xfeat_rotations must be in [1, 36]";
   if (top_n_per_tile < 4) return "top_n_per_tile must be >= 4";
   if (max_candidate_tiles < 1) return "max_candidate_tiles must be >= 1";
   if (!(oc_heading_step_deg > 0.1)) return "oc_heading_step_deg must be > 0.1";
@@ -311,7 +314,10 @@ struct Locator::Impl {
         crs(d.crs_wkt),
         extractor(features::CreateFeatureExtractor({.type = d.feature_type,
                                                     .max_features = o.frame_features,
-                                                    .orb_levels = o.frame_orb_levels})) {
+                                                    .orb_levels = o.frame_orb_levels,
+                                                    .model_path = o.model_path,
+                                                    .xfeat_scale = d.options.xfeat_scale,
+                                                    .threads = o.xfeat_threads})) {
     core_descriptors.resize(db.tiles.size());
     core_index.resize(db.tiles.size());
     for (const MapTile& t : db.tiles) {
@@ -331,6 +337,10 @@ struct Locator::Impl {
           t.descriptors.row(idx[k]).copyTo(d.row(static_cast<int>(k)));
       }
     }
+  }
+
+  float Ratio() const {
+    return db.feature_type == features::FeatureType::kXFeat ? options.xfeat_ratio : options.ratio;
   }
 
   std::vector<Eigen::Vector2d> PriorCentresPx(const Prior& prior, const Locator& self) const {
@@ -618,7 +628,23 @@ LocateResult Locator::FeaturesOn(const PreparedFrame& pf, const Prior& prior) {
   } else {
     to_feature = 1.0;
   }
-  const features::Features ff = im.extractor->Extract(work, work_mask);
+  features::Features ff;
+  if (db.feature_type == features::FeatureType::kXFeat) {
+    // XFeat descriptors are not rotation invariant: the frame is turned to the map's orientation
+    // by the prior heading, or, without one, seen at a few rotations spread over the circle.
+    const Eigen::Vector2d north_px = HeadingToPixelDirection(0.0);
+    const double grid_rot = std::atan2(north_px.x(), -north_px.y());
+    std::vector<double> angles;
+    if (prior.heading_deg) {
+      angles.push_back(*prior.heading_deg * kDeg + grid_rot);
+    } else {
+      for (int k = 0; k < im.options.xfeat_rotations; ++k)
+        angles.push_back(grid_rot + 2 * M_PI * k / im.options.xfeat_rotations);
+    }
+    ff = features::ExtractRotated(*im.extractor, work, work_mask, angles);
+  } else {
+    ff = im.extractor->Extract(work, work_mask);
+  }
   r.times.extraction_ms = stage.ElapsedSeconds() * 1e3;
   if (ff.size() < 8) {
     return a.Fail(
@@ -661,8 +687,7 @@ LocateResult Locator::FeaturesOn(const PreparedFrame& pf, const Prior& prior) {
     }
     const cv::Mat query =
         ff.descriptors.rowRange(0, std::min(ff.descriptors.rows, im.options.global_query_features));
-    const auto votes_m =
-        features::MatchWithRatio(query, im.all_descriptors, ff.norm, im.options.ratio);
+    const auto votes_m = features::MatchWithRatio(query, im.all_descriptors, ff.norm, im.Ratio());
     std::vector<double> votes(db.tiles.size(), 0.0);
     for (const auto& m : votes_m) votes[im.descriptor_tile[m.trainIdx]] += 1.0;
     std::vector<int> order(db.tiles.size());
@@ -704,7 +729,8 @@ LocateResult Locator::FeaturesOn(const PreparedFrame& pf, const Prior& prior) {
   if (!parts.empty()) {
     cv::Mat train;
     cv::vconcat(parts, train);
-    const auto matches = features::MatchWithRatio(ff.descriptors, train, ff.norm, im.options.ratio);
+    const auto matches =
+        features::MatchFeatures(db.feature_type, ff.descriptors, train, im.Ratio());
     std::unordered_map<int, int> per_tile;
     // Several frame features (e.g. one corner at two pyramid levels) can match map features at
     // the same place: keep the best match per map grid cell.

@@ -55,7 +55,19 @@ struct Prior {
 };
 
 struct LocateOptions {
-  float ratio = 0.8f;                 // Lowe's ratio
+  float ratio = 0.8f;  // Lowe's ratio (ORB, SIFT, BRISK maps)
+  // XFeat maps: mutual nearest neighbours with this ratio (features::MatchMutual; docs/MAPDB.md),
+  // the network file ("" = features::DefaultXFeatModelPath()) and OpenCV's thread count for its
+  // forward pass (0 = OpenCV's default).
+  // 1 (mutual nearest neighbours only): farmland repeats, so the second nearest is often nearly
+  // as close as the nearest; a ratio of 0.9 removed most true matches (docs/MAPDB.md).
+  float xfeat_ratio = 1.0f;
+  // Without a heading, XFeat (not rotation invariant: 30 deg off halves its matches, 45 deg
+  // loses them) sees the frame at this many rotations spread over the circle (one forward pass
+  // each).
+  int xfeat_rotations = 8;
+  std::string model_path;
+  int xfeat_threads = 0;
   int top_n_per_tile = 300;           // best matches kept per tile
   int max_candidate_tiles = 9;        // nearest tiles to the prior that are matched
   int global_verify_tiles = 3;        // best-voted tiles verified (with neighbours) globally

@@ -17,6 +17,7 @@
 #include <spdlog/spdlog.h>
 #include <sqlite3.h>
 
+#include "optinav/features/xfeat.h"
 #include "optinav/geo/raster.h"
 #include "optinav/util/progress.h"
 
@@ -100,14 +101,17 @@ uint32_t MetaCrc(const std::map<std::string, std::string>& meta) {
 int64_t CrcValue(uint32_t crc) { return static_cast<int64_t>(crc); }
 
 nlohmann::json OptionsToJson(const MapBuildOptions& o) {
-  return {{"altitude_m", o.altitude_m},
-          {"hfov_deg", o.hfov_deg},
-          {"frame_width", o.frame_width},
-          {"frame_height", o.frame_height},
-          {"scale_factor", o.scale_factor},
-          {"overlap", o.overlap},
-          {"features", features::FeatureTypeName(o.feature_type)},
-          {"max_features", o.max_features}};
+  nlohmann::json j = {{"altitude_m", o.altitude_m},
+                      {"hfov_deg", o.hfov_deg},
+                      {"frame_width", o.frame_width},
+                      {"frame_height", o.frame_height},
+                      {"scale_factor", o.scale_factor},
+                      {"overlap", o.overlap},
+                      {"features", features::FeatureTypeName(o.feature_type)},
+                      {"max_features", o.max_features}};
+  // The resolved resampling (never 0 in a built map): frames must be resampled alike.
+  if (o.feature_type == features::FeatureType::kXFeat) j["xfeat_scale"] = o.xfeat_scale;
+  return j;
 }
 
 MapBuildOptions OptionsFromJson(const nlohmann::json& j) {
@@ -122,6 +126,11 @@ MapBuildOptions OptionsFromJson(const nlohmann::json& j) {
   if (!type) throw std::invalid_argument("unknown feature type");
   o.feature_type = *type;
   o.max_features = j.at("max_features");
+  if (o.feature_type == features::FeatureType::kXFeat) {
+    o.xfeat_scale = j.at("xfeat_scale");
+    if (!(o.xfeat_scale > 0 && o.xfeat_scale <= 8))
+      throw std::invalid_argument("xfeat_scale out of range");
+  }
   return o;
 }
 
@@ -274,6 +283,8 @@ std::string MapBuildOptions::Check() const {
   if (max_features < 16 || max_features > 100000)
     return fmt::format("--max-features must be in [16, 100000], got {}", max_features);
   if (threads < 0) return "--threads must be >= 0";
+  if (!(xfeat_scale >= 0 && xfeat_scale <= 8))
+    return fmt::format("xfeat_scale must be in [0, 8], got {}", xfeat_scale);
   return "";
 }
 
@@ -370,6 +381,16 @@ MapDatabase BuildMapDatabase(const std::string& ortho_path, const MapBuildOption
   const int tile_img = std::max(16, static_cast<int>(std::lround(m.tile_px * level_scale)));
   const int n_threads =
       o.threads > 0 ? o.threads : std::max(1u, std::thread::hardware_concurrency());
+  if (o.feature_type == features::FeatureType::kXFeat) {
+    // Checked here, so that a missing or wrong network is named as such (not as a tile's
+    // failure); every worker then shares the one loaded net.
+    features::CheckXFeatModel(o.model_path.empty() ? features::DefaultXFeatModelPath()
+                                                   : o.model_path);
+    if (m.options.xfeat_scale == 0) {
+      m.options.xfeat_scale =
+          std::min(kXFeatTileScale, static_cast<double>(features::kXFeatInputSize) / tile_img);
+    }
+  }
   spdlog::info(
       "map build: {} x {} px at {:.3f} m/px, {} x {} tiles of {:.0f} px ({:.0f} m), "
       "features at {:.3f} m/px on {} thread(s)",
@@ -383,8 +404,11 @@ MapDatabase BuildMapDatabase(const std::string& ortho_path, const MapBuildOption
     try {
       // GDAL datasets are not thread-safe: one handle per worker.
       const geo::GeoRaster raster = geo::GeoRaster::Open(ortho_path);
-      const auto extractor = features::CreateFeatureExtractor(
-          {.type = o.feature_type, .max_features = o.max_features});
+      const auto extractor =
+          features::CreateFeatureExtractor({.type = o.feature_type,
+                                            .max_features = o.max_features,
+                                            .model_path = o.model_path,
+                                            .xfeat_scale = m.options.xfeat_scale});
       for (size_t i = next++; i < static_cast<size_t>(last_tile); i = next++) {
         {
           std::lock_guard<std::mutex> lock(error_mutex);
@@ -518,9 +542,9 @@ MapDatabase ReadDatabase(const std::string& path, MapShard* part) {
   } catch (const std::exception& e) {
     throw Error(std::string("corrupt map metadata: ") + e.what(), {.file = path});
   }
-  const auto extractor = features::CreateFeatureExtractor({.type = m.feature_type});
-  const int desc_type = extractor->descriptor_type();
-  const int desc_cols = extractor->descriptor_size();
+  const features::DescriptorFormat format = features::DescriptorFormatOf(m.feature_type);
+  const int desc_type = format.type;
+  const int desc_cols = format.size;
   const size_t desc_bytes = desc_cols * (desc_type == CV_8U ? 1 : 4);
   const auto [first_tile, last_tile] = ShardTileRange(m.rows * m.cols, part ? *part : MapShard{});
   Stmt q{db.Prepare(

@@ -23,6 +23,11 @@ namespace optinav::maploc {
 // 2: CRC-32 checksums on the metadata and on every tile's geometry, keypoints and descriptors.
 constexpr int kMapFormatVersion = 2;
 
+// Network px per map-feature px for XFeat tiles (see MapBuildOptions::xfeat_scale): XFeat finds
+// its keypoints on 8x8 cells and was trained on photographs of a few hundred pixels across; the
+// 5 m/px NAIP tiles of 256 px match best upsampled (docs/MAPDB.md, "XFeat").
+constexpr double kXFeatTileScale = 2.0;
+
 // CRC-32 (IEEE 802.3 / zlib polynomial, reflected), continuing from `crc` (0 to start): the
 // checksum the database stores; Python's zlib.crc32 gives the same value.
 uint32_t Crc32(const void* data, size_t size, uint32_t crc = 0);
@@ -37,7 +42,13 @@ struct MapBuildOptions {
   double scale_factor = 1.0;
   double overlap = 0.5;  // fraction of a tile shared with its neighbour, [0, 0.9]
   features::FeatureType feature_type = features::FeatureType::kOrb;
-  int max_features = 1024;    // per tile
+  int max_features = 1024;  // per tile
+  // XFeat maps: the network file ("" = features::DefaultXFeatModelPath()) and the tile image's
+  // resampling to the network (network px per tile px; 0 = automatic: kXFeatTileScale, or less
+  // when the tile would not fit the 640 px input). Frames are resampled by the same factor at
+  // locate time (stored in build_options), so map and frame features meet at one scale.
+  std::string model_path;
+  double xfeat_scale = 0;
   int threads = 2;            // 0: all hardware threads
   std::string Check() const;  // "" when valid, else names the field and value
 };

@@ -28,21 +28,29 @@ inline std::string Naip(const std::string& year) {
 
 // The NAIP 2009 map of the tests: built for a 256x256 camera with a 90 deg field of view at
 // 640 m (footprint 1280 m = 256 px at the tile's 5 m).
-inline MapDatabase BuildNaip2009Map(const std::filesystem::path& dir) {
+inline MapDatabase BuildNaip2009Map(const std::filesystem::path& dir,
+                                    features::FeatureType type = features::FeatureType::kOrb) {
   MapBuildOptions o;
   o.frame_width = 256;
   o.frame_height = 256;
   o.hfov_deg = 90;
   o.altitude_m = 640;
-  return BuildMapDatabase(Naip("20090818"), o, (dir / "naip2009.db").string());
+  o.feature_type = type;
+  if (type == features::FeatureType::kXFeat) {
+    o.model_path = (testing::SharedDataDir() / "models" / "xfeat_640x640.onnx").string();
+  }
+  return BuildMapDatabase(Naip("20090818"), o,
+                          (dir / ("naip2009_" + features::FeatureTypeName(type) + ".db")).string());
 }
 
-// A test suite sharing one NAIP 2009 map (built once per suite, in a temporary folder).
-class Naip2009MapTest : public ::testing::Test {
+// A test suite sharing one NAIP 2009 map (built once per suite, in a temporary folder) with
+// `kType` features.
+template <features::FeatureType kType>
+class Naip2009MapTestOf : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = new std::filesystem::path(testing::MakeTempDir("naip2009"));
-    db_ = new MapDatabase(BuildNaip2009Map(*dir_));
+    db_ = new MapDatabase(BuildNaip2009Map(*dir_, kType));
   }
   static void TearDownTestSuite() {
     delete db_;
@@ -52,5 +60,7 @@ class Naip2009MapTest : public ::testing::Test {
   inline static std::filesystem::path* dir_ = nullptr;
   inline static MapDatabase* db_ = nullptr;
 };
+using Naip2009MapTest = Naip2009MapTestOf<features::FeatureType::kOrb>;
+using Naip2009XFeatMapTest = Naip2009MapTestOf<features::FeatureType::kXFeat>;
 
 }  // namespace optinav::maploc::testmaps
