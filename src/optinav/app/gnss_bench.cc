@@ -20,6 +20,7 @@
 #include "optinav/io/gnss_io.h"
 #include "optinav/io/text_parse.h"
 #include "optinav/io/trajectory_io.h"
+#include "optinav/report/html_report.h"
 #include "optinav/sim/sensors.h"
 #include "optinav/sim/simulation.h"
 #include "optinav/util/error.h"
@@ -82,7 +83,7 @@ std::string GnssBenchOptions::Check() const {
   if (!(scale > 0 && std::isfinite(scale)))
     return fmt::format("--scale must be > 0, got {}", scale);
   if (!(duration_s >= 0 && std::isfinite(duration_s)))
-    return fmt::format("duration_s must be >= 0, got {}", duration_s);
+    return fmt::format("--duration must be >= 0, got {}", duration_s);
   if (const std::string e = fusion.Check(); !e.empty()) return "--gnss " + e;
   return "";
 }
@@ -247,6 +248,9 @@ bool LoadRun(const fs::path& stem, const vio::GnssFusionOptions& fusion, GnssRun
     r->aligned = j.at("enu_aligned").get<bool>();
     r->backend_median_ms = JsonNumber(j, "backend_median_ms");
     r->backend_keyframe_median_ms = JsonNumber(j, "backend_keyframe_median_ms");
+    if (j.contains("rejected_samples"))  // runs saved before the HTML report have none
+      for (const nlohmann::json& x : j.at("rejected_samples"))
+        r->gnss_rejected.emplace_back(x.at(0).get<int64_t>(), x.at(1).get<std::string>());
     r->estimate = io::ReadTrajectory(tum_path.string());
     if (r->aligned && r->condition) r->live = io::ReadTrajectory(stem.string() + ".live.tum");
     return !r->estimate.empty();
@@ -271,7 +275,8 @@ void SaveRun(const fs::path& stem, const vio::GnssFusionOptions& fusion, const G
                             {"enu_aligned", r.aligned},
                             {"backend_median_ms", r.backend_median_ms},
                             {"backend_keyframe_median_ms", r.backend_keyframe_median_ms},
-                            {"gnss_settings", FusionSettings(fusion)}};
+                            {"gnss_settings", FusionSettings(fusion)},
+                            {"rejected_samples", r.gnss_rejected}};
   io::WriteFileAtomically(stem.string() + ".json", j.dump(2) + "\n");
 }
 
@@ -297,6 +302,8 @@ void RunVio(const GnssBenchSequenceInfo& seq, const vio::GnssFusionOptions& fusi
   r->lost = v.lost.size();
   r->factors = v.gnss_stats.factors;
   r->rejected = v.gnss_stats.rejected;
+  for (const vio::RejectedGnss& g : v.gnss_rejected)
+    r->gnss_rejected.emplace_back(g.t_ns, g.reason);
   if (v.timing.count("backend")) r->backend_median_ms = v.timing.at("backend").median_s * 1e3;
   if (v.timing.count("backend_keyframe"))
     r->backend_keyframe_median_ms = v.timing.at("backend_keyframe").median_s * 1e3;
@@ -409,6 +416,7 @@ void Evaluate(const GnssBenchSequenceInfo& seq, const Trajectory* vio_alone, Gns
     eval::AlignTrajectory(synced.ref, &global, a);
   }
   r->error_over_time = ErrorOverTime(synced.ref, global, seq.truth.t_ns.front());
+  r->global = global;
   r->global_rmse = RmseFrom(r->error_over_time, -INFINITY);
   r->global_rmse_10s = RmseFrom(r->error_over_time, 10.0);
   if (const auto window = OutageWindow(seq, *r))
@@ -491,6 +499,18 @@ void WriteResults(const GnssBenchOptions& options, const GnssBenchResult& result
   io::WriteFileAtomically((out / "tables.md").string(), result.tables);
   for (const GnssBenchSequenceInfo& s : result.sequences)
     internal::WriteGnssErrorPlot((out / ("error_" + s.name + ".svg")).string(), result.runs, s);
+  nlohmann::json settings = {{"seeds", options.seeds},
+                             {"scale", options.scale},
+                             {"duration_s", options.duration_s},
+                             {"jobs", options.jobs},
+                             {"fusion", FusionSettings(options.fusion)}};
+  for (GnssBenchSequence q : options.sequences)
+    settings["sequences"].push_back(GnssBenchSequenceName(q));
+  for (GnssCondition c : options.conditions) settings["conditions"].push_back(ConditionSpec(c).key);
+  for (vio::GnssNorm n : options.norms) settings["norms"].push_back(NormLabel(n));
+  report::WriteReportDocument(
+      ReportDocumentPath(options.out_dir),
+      internal::GnssBenchReportDocument(result.sequences, result.runs, settings, result.tables));
 }
 
 }  // namespace
@@ -500,6 +520,7 @@ GnssBenchResult RunGnssBench(const GnssBenchOptions& options, const GnssBenchPro
     const size_t space = e.find(' ');  // the message starts with the flag at fault
     throw Error(e.substr(space + 1), {.field = e.substr(0, space)});
   }
+  if (options.html) report::LoadLeafletAssets();  // missing: say so before the runs, not after
   fs::create_directories(fs::path(options.out_dir) / "runs");
   GnssBenchResult result;
   for (GnssBenchSequence s : options.sequences)
@@ -529,6 +550,7 @@ GnssBenchResult RunGnssBench(const GnssBenchOptions& options, const GnssBenchPro
   result.tables = internal::GnssBenchTables(result.sequences, options.conditions, options.norms,
                                             result.runs, &result.never_worse);
   WriteResults(options, result);
+  if (options.html) result.html = WriteHtmlReport(options.out_dir);
   return result;
 }
 

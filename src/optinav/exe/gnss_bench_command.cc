@@ -46,12 +46,16 @@ void AddFlags(CLI::App& app, app::GnssBenchOptions* o, BenchFlags* f) {
   cli::AddGnssFusionFlags(app, &f->fusion);
   app.add_option("--scale", o->scale, "image size factor of the rendered sequences")
       ->capture_default_str();
+  app.add_option("--duration", o->duration_s,
+                 "seconds of each sequence to render (0: room 100 s, outdoor 200 s)")
+      ->capture_default_str();
   app.add_option("--jobs", o->jobs, "runs in parallel (each VIO run is single-threaded)")
       ->capture_default_str();
   app.add_flag(
       "--reuse", o->reuse,
       "reuse complete sequences in OUT/sequences and finished runs in OUT/runs (resume, add "
       "seeds)");
+  app.add_flag("--html", o->html, "also write the HTML report OUT/report.html (optinav report)");
 }
 
 // The list and fusion flags into `o`, then o->Check().
@@ -99,8 +103,10 @@ int RunGnssBench(int argc, char** argv) {
     std::printf("never worse than VIO alone (every row, every seed, 5 %% margin): %s\n",
                 result.never_worse ? "yes" : "NO");
     std::printf(
-        "bench gnss: results.csv, results.json, tables.md, error_*.svg, runs/*.tum+json -> %s\n",
+        "bench gnss: results.csv, results.json, tables.md, error_*.svg, report.json, "
+        "runs/*.tum+json -> %s\n",
         options.out_dir.c_str());
+    if (result.html) PrintHtmlReportLine(*result.html);
     return 0;
   };
   return cli::RunCli(app, argc, argv, run, {.default_log_level = "warn"});

@@ -34,6 +34,7 @@ void AddFlags(CLI::App& app, app::WeatherBenchOptions* o, WeatherFlags* f) {
       ->capture_default_str();
   app.add_flag("--reuse", o->reuse,
                "keep complete sequences in OUT/sequences and finished runs in OUT/runs (resume)");
+  app.add_flag("--html", o->html, "also write the HTML report OUT/report.html (optinav report)");
 }
 
 void ApplyFlags(const WeatherFlags& f, app::WeatherBenchOptions* o) {
@@ -65,8 +66,9 @@ int RunWeatherBench(int argc, char** argv) {
     std::printf("\n%s\n", result.table.c_str());
     std::printf(
         "bench weather: %zu runs in %.0f s; results.json, table.md, table.csv, "
-        "weather_error.svg/.png -> %s\n",
+        "weather_error.svg/.png, report.json -> %s\n",
         result.runs.size(), result.wall_s, options.out_dir.c_str());
+    if (result.html) PrintHtmlReportLine(*result.html);
     return 0;
   };
   return cli::RunCli(app, argc, argv, run, {.default_log_level = "warn"});
