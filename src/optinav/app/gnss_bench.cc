@@ -508,9 +508,8 @@ void WriteResults(const GnssBenchOptions& options, const GnssBenchResult& result
     settings["sequences"].push_back(GnssBenchSequenceName(q));
   for (GnssCondition c : options.conditions) settings["conditions"].push_back(ConditionSpec(c).key);
   for (vio::GnssNorm n : options.norms) settings["norms"].push_back(NormLabel(n));
-  report::WriteReportDocument(
-      ReportDocumentPath(options.out_dir),
-      internal::GnssBenchReportDocument(result.sequences, result.runs, settings, result.tables));
+  internal::WriteGnssBenchReportDocument(ReportDocumentPath(options.out_dir), result.sequences,
+                                         result.runs, settings, result.tables);
 }
 
 }  // namespace

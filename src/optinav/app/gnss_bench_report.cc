@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 
 #include "optinav/io/text_parse.h"
+#include "optinav/report/html_report.h"
 #include "optinav/report/svg.h"
 
 namespace optinav::app::internal {
@@ -445,10 +446,10 @@ std::string F3(double v) { return std::isfinite(v) ? fmt::format("{:.3f}", v) : 
 
 }  // namespace
 
-report::ReportDocument GnssBenchReportDocument(const std::vector<GnssBenchSequenceInfo>& sequences,
-                                               const std::vector<GnssRunResult>& runs,
-                                               const nlohmann::json& settings,
-                                               const std::string& tables) {
+void WriteGnssBenchReportDocument(const std::string& path,
+                                  const std::vector<GnssBenchSequenceInfo>& sequences,
+                                  const std::vector<GnssRunResult>& runs,
+                                  const nlohmann::json& settings, const std::string& tables) {
   report::ReportDocument doc;
   doc.kind = "bench gnss";
   doc.title =
@@ -472,7 +473,7 @@ report::ReportDocument GnssBenchReportDocument(const std::vector<GnssBenchSequen
   doc.tables.push_back(std::move(t));
   doc.settings = settings;
   doc.text = tables;
-  return doc;
+  report::WriteReportDocument(path, doc);
 }
 
 }  // namespace optinav::app::internal

@@ -208,6 +208,7 @@ void WriteGnssReportDocument(const VioRunSettings& st, const vio::GnssInput& inp
     dots.y.push_back(error_m);
   }
   chart.series.push_back(std::move(dots));
+  v.fix_error_scale_m = 3 * input.default_sigma_m + 1;  // red: beyond what the noise explains
   if (vs_truth && enu) {
     const eval::SyncedPair synced = eval::Synchronize(*truth, body);
     const eval::ErrorSeries e =
@@ -229,7 +230,12 @@ void WriteGnssReportDocument(const VioRunSettings& st, const vio::GnssInput& inp
   report::ReportDocument doc;
   doc.kind = "vio gnss";
   doc.title = "optinav vio --gnss: " + st.dataset;
-  doc.notes.push_back(FormatVioSummary(st, *report));
+  const std::string summary = FormatVioSummary(st, *report);
+  for (size_t a = 0, b; a < summary.size(); a = b + 1) {
+    b = summary.find('\n', a);
+    if (b == std::string::npos) b = summary.size();
+    if (b > a) doc.notes.push_back(summary.substr(a, b - a));
+  }
   if (!enu) doc.notes.push_back("the ENU alignment was never made: no output path is drawn");
   doc.views.push_back(std::move(v));
   const vio::GnssFusionStats& g = r.gnss_stats;

@@ -393,8 +393,8 @@ std::vector<Eigen::Vector2d> LocalPoints(const Trajectory& t) {
 
 std::string Fmt2(double v) { return std::isfinite(v) ? fmt::format("{:.2f}", v) : "-"; }
 
-}  // namespace
-
+// The HTML report's document: per world the ground truth and every run's output (first pose
+// aligned) in the local frame, the error over time, the run table and table.md.
 report::ReportDocument WeatherBenchReportDocument(const WeatherBenchOptions& options,
                                                   const WeatherBenchResult& result) {
   report::ReportDocument doc;
@@ -456,6 +456,8 @@ report::ReportDocument WeatherBenchReportDocument(const WeatherBenchOptions& opt
   doc.settings = WeatherBenchJson(options, result).at("settings");
   return doc;
 }
+
+}  // namespace
 
 void WriteWeatherBenchFiles(const WeatherBenchOptions& options, const WeatherBenchResult& result) {
   const fs::path out = options.out_dir;

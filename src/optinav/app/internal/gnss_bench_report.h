@@ -8,7 +8,6 @@
 #include <nlohmann/json.hpp>
 
 #include "optinav/app/gnss_bench.h"
-#include "optinav/report/html_report.h"
 
 namespace optinav::app::internal {
 
@@ -31,9 +30,9 @@ void WriteGnssErrorPlot(const std::string& path, const std::vector<GnssRunResult
 // The HTML report's document: per sequence a map in the local ENU frame (truth, the VIO alone,
 // every fused run's output, one layer per condition x norm), the GNSS samples of one run as fixes
 // coloured by their error (rejected ones marked), the global error over time; the run table.
-report::ReportDocument GnssBenchReportDocument(const std::vector<GnssBenchSequenceInfo>& sequences,
-                                               const std::vector<GnssRunResult>& runs,
-                                               const nlohmann::json& settings,
-                                               const std::string& tables);
+void WriteGnssBenchReportDocument(const std::string& path,
+                                  const std::vector<GnssBenchSequenceInfo>& sequences,
+                                  const std::vector<GnssRunResult>& runs,
+                                  const nlohmann::json& settings, const std::string& tables);
 
 }  // namespace optinav::app::internal

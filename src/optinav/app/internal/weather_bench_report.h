@@ -9,7 +9,6 @@
 #include <nlohmann/json.hpp>
 
 #include "optinav/app/weather_bench.h"
-#include "optinav/report/html_report.h"
 
 namespace optinav::app::internal {
 
@@ -29,10 +28,5 @@ void WriteWeatherPlot(const std::string& stem, const WeatherBenchOptions& option
 
 // results.json, table.md, table.csv, weather_error.svg/.png in options.out_dir.
 void WriteWeatherBenchFiles(const WeatherBenchOptions& options, const WeatherBenchResult& result);
-
-// The HTML report's document: per world the ground truth and every run's output (first pose
-// aligned) in the local frame, the error over time, the run table and table.md.
-report::ReportDocument WeatherBenchReportDocument(const WeatherBenchOptions& options,
-                                                  const WeatherBenchResult& result);
 
 }  // namespace optinav::app::internal
