@@ -399,7 +399,7 @@ std::string Fmt(double v, int decimals) {
 
 report::ReportTable SummaryTable(const MissionExperimentResult& r) {
   const double steps = r.steps;
-  report::ReportTable t{"Summary", {"figure", "value"}, {}};
+  report::ReportTable t{"Key figures", {"figure", "value"}, {}};
   const auto row = [&](const std::string& k, const std::string& v) { t.rows.push_back({k, v}); };
   row("runs reached / flown", fmt::format("{} / {}", r.reached, r.runs.size()));
   row("success radius (m)", Fmt(r.success_radius_m, 0));
@@ -493,7 +493,7 @@ void WriteMissionReport(const MissionExperimentOptions& opt, Setup& s,
                            fmt::format("end {} ({:.0f} m short)", n, run.mission.final_distance_m),
                            "end", LatLonPoint(run.mission.steps.back().truth)});
   }
-  chart.series.push_back(std::move(fixes));
+  chart.series.insert(chart.series.begin(), std::move(fixes));  // under the lines
   v.chart = std::move(chart);
   report::ReportDocument doc;
   doc.kind = "mission";

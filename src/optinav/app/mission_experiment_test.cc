@@ -148,7 +148,7 @@ TEST_F(MissionExperimentTest, SeededRunsReachTheTargetAndWriteTheSummary) {
       EXPECT_LT(ll.y(), v.image->max.y());
     }
   ASSERT_TRUE(v.chart);
-  EXPECT_EQ(v.chart->series.size(), 3u);  // estimate error per run, the fixes' errors
+  EXPECT_EQ(v.chart->series.size(), 3u);  // the fixes' errors, the estimate error per run
   EXPECT_EQ(doc.settings, s["settings"]);
 
   // The printed table says the same.

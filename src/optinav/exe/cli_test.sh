@@ -219,7 +219,8 @@ expect_error "report of a folder without report.json" "no report.json" "$BIN" re
 expect_error "report without the vendored Leaflet" "scripts/vendor_leaflet.sh" \
   env OPTINAV_LEAFLET_DIR="$WORK/empty" "$BIN" report "$WORK/mission" --out "$WORK/r2.html"
 [[ ! -e "$WORK/r2.html" ]] || fail "a refused report wrote its output"
-echo '{"format": "optinav-report", "version": 1, "views": [{"paths": [{"points": [[1]]}]}]}' \
+echo '{"format": "optinav-report", "version": 1, "kind": "mission",
+  "views": [{"paths": [{"points": [[1]]}]}]}' \
   > "$WORK/empty/bad.report.json"
 expect_error "report of a malformed document" "field 'views[0].paths[0].points[0]'" \
   "$BIN" report "$WORK/empty"

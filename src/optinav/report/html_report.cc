@@ -45,14 +45,14 @@ class Reader {
   Reader(const std::string& file) : file_(file) {}
 
   const json& At(const json& j, const std::string& key, const std::string& path) const {
-    if (!j.is_object() || !j.contains(key)) Fail(path + "." + key, "missing");
+    if (!j.is_object() || !j.contains(key)) Fail(Join(path, key), "missing");
     return j.at(key);
   }
   std::string String(const json& j, const std::string& key, const std::string& path,
                      const std::string& fallback = "\x01") const {
     if (fallback != "\x01" && (!j.contains(key) || j.at(key).is_null())) return fallback;
     const json& v = At(j, key, path);
-    if (!v.is_string()) Fail(path + "." + key, "expected a string");
+    if (!v.is_string()) Fail(Join(path, key), "expected a string");
     return v.get<std::string>();
   }
   double Double(const json& j, const std::string& key, const std::string& path,
@@ -60,12 +60,12 @@ class Reader {
     if (fallback && (!j.contains(key))) return *fallback;
     const json& v = At(j, key, path);
     if (v.is_null()) return NAN;
-    if (!v.is_number()) Fail(path + "." + key, "expected a number");
+    if (!v.is_number()) Fail(Join(path, key), "expected a number");
     return v.get<double>();
   }
   bool Bool(const json& j, const std::string& key, const std::string& path, bool fallback) const {
     if (!j.contains(key)) return fallback;
-    if (!j.at(key).is_boolean()) Fail(path + "." + key, "expected true or false");
+    if (!j.at(key).is_boolean()) Fail(Join(path, key), "expected true or false");
     return j.at(key).get<bool>();
   }
   const json& Array(const json& j, const std::string& key, const std::string& path,
@@ -73,7 +73,7 @@ class Reader {
     static const json kEmpty = json::array();
     if (optional && !j.contains(key)) return kEmpty;
     const json& v = At(j, key, path);
-    if (!v.is_array()) Fail(path + "." + key, "expected an array");
+    if (!v.is_array()) Fail(Join(path, key), "expected an array");
     return v;
   }
   Eigen::Vector2d Point(const json& v, const std::string& path) const {
@@ -91,10 +91,13 @@ class Reader {
       } else if (a[i].is_number()) {
         out.push_back(a[i].get<double>());
       } else {
-        Fail(fmt::format("{}.{}[{}]", path, key, i), "expected a number");
+        Fail(fmt::format("{}[{}]", Join(path, key), i), "expected a number");
       }
     }
     return out;
+  }
+  static std::string Join(const std::string& path, const std::string& key) {
+    return path.empty() ? key : path + "." + key;
   }
   [[noreturn]] void Fail(const std::string& field, const std::string& what) const {
     throw Error(what, {.file = file_, .field = field});
@@ -270,7 +273,8 @@ constexpr const char* kPageScript = R"JS(
     });
   }
   function fmt(v, d) { return v === null || v === undefined ? 'n/a' : Number(v).toFixed(d); }
-  var markerColour = {start: '#1e5adc', target: '#dc1e1e', end: '#14a03c'};
+  // Not in the fix colour map: start blue, target black, end of a missed run white.
+  var markerColour = {start: '#1e5adc', target: '#111111', end: '#ffffff'};
   D.views.forEach(function (v, i) {
     var geo = v.frame === 'wgs84';
     var map = L.map('map-' + i, {
@@ -305,7 +309,8 @@ constexpr const char* kPageScript = R"JS(
       counts.paths++;
     });
     v.fixes.forEach(function (f) {
-      var dot = L.circleMarker(f.p, {radius: f.a ? 4 : 3, color: f.a ? '#222' : '#c00',
+      var r = v.fixes.length > 1000 ? 3 : 4;
+      var dot = L.circleMarker(f.p, {radius: f.a ? r : r - 1, color: f.a ? '#222' : '#c00',
         weight: f.a ? 0.6 : 1.2, fillColor: f.c, fillOpacity: 0.9, className: 'optinav-fix'});
       dot.bindPopup('<b>' + esc(f.name) + '</b><br>time ' + fmt(f.t, 1) + ' s<br>error ' +
         fmt(f.e, 2) + ' m<br>method ' + esc(f.m) +
@@ -317,7 +322,8 @@ constexpr const char* kPageScript = R"JS(
     });
     v.markers.forEach(function (m) {
       var c = markerColour[m.kind] || '#000';
-      var mk = L.circleMarker(m.p, {radius: m.kind === 'target' ? 9 : 7, color: '#fff', weight: 2,
+      var mk = L.circleMarker(m.p, {radius: m.kind === 'target' ? 9 : 7,
+        color: m.kind === 'end' ? '#111' : '#fff', weight: 2,
         fillColor: c, fillOpacity: 1, className: 'optinav-marker optinav-' + m.kind});
       mk.bindPopup(esc(m.label));
       if (m.label) mk.bindTooltip(esc(m.label), {direction: 'right', offset: [8, 0]});
@@ -572,6 +578,17 @@ std::string RenderChartSvg(const ReportChart& c, int width, int height) {
     }
   if (!std::isfinite(x0)) x0 = 0, x1 = 1;
   if (!(x1 > x0)) x1 = x0 + 1;
+  // A few wrong fixes (kilometres off) would flatten everything else: the axis ends at 1.5x the
+  // 98th percentile, and what lies above is pinned to the top.
+  std::vector<double> ys;
+  for (const ReportSeries& s : c.series)
+    for (double y : s.y)
+      if (std::isfinite(y)) ys.push_back(y);
+  bool pinned = false;
+  if (!ys.empty()) {
+    const double cap = 1.5 * Quantile(ys, 0.98);
+    if (cap > 0 && cap < y1) y1 = cap, pinned = true;
+  }
   if (!(y1 > 0)) y1 = 1;
   const Ticks xt = NiceTicks(x0, x1, 8), yt = NiceTicks(0, y1, 5);
   y1 = std::max(y1, yt.start + yt.step * (yt.count - 1));
@@ -595,6 +612,10 @@ std::string RenderChartSvg(const ReportChart& c, int width, int height) {
   svg.Text(14, kTop + ph / 2, c.y_label, 11, "middle",
            fmt::format("transform=\"rotate(-90 14 {:.1f})\"", kTop + ph / 2));
   svg.Text(kLeft + pw / 2, height - 4, c.x_label, 11, "middle");
+  if (pinned)
+    svg.Text(kLeft + 6, kTop + 12,
+             fmt::format("values above {} pinned to the top", FormatTick(y1, yt.step)), 10, "start",
+             "fill=\"#666666\"");
   double lx = width - kRight;  // legend, right-aligned on the title line
   for (auto it = c.series.rbegin(); it != c.series.rend(); ++it) {
     if (it->name.empty()) continue;
@@ -617,7 +638,7 @@ std::string RenderChartSvg(const ReportChart& c, int width, int height) {
     std::string pts;
     for (size_t i = 0; i < s.x.size(); ++i) {
       if (!std::isfinite(s.x[i]) || !std::isfinite(s.y[i])) continue;
-      pts += fmt::format("{:.1f},{:.1f} ", X(s.x[i]), Y(s.y[i]));
+      pts += fmt::format("{:.1f},{:.1f} ", X(s.x[i]), Y(std::min(s.y[i], y1)));
     }
     svg.Raw(
         fmt::format("<polyline points=\"{}\" fill=\"none\" stroke=\"{}\" stroke-width=\"1.3\" "

@@ -86,6 +86,9 @@ TEST(HtmlReport, BadDocumentsNameTheFileAndField) {
   const fs::path dir = testing::MakeTempDir("html_report_bad");
   const std::string not_json = testing::WriteFile(dir / "a.json", "{\"format\": ");
   EXPECT_ERROR(ReadReportDocument(not_json), {.file = "a.json"}, "not valid JSON");
+  const std::string no_kind =
+      testing::WriteFile(dir / "k.json", "{\"format\": \"optinav-report\", \"version\": 1}");
+  EXPECT_ERROR(ReadReportDocument(no_kind), {.file = "k.json", .field = "kind"}, "missing");
   const std::string other = testing::WriteFile(dir / "b.json", "{\"format\": \"x\"}");
   EXPECT_ERROR(ReadReportDocument(other), {.file = "b.json", .field = "format"},
                "not an optinav report");
