@@ -139,7 +139,6 @@ ReportChart ChartFromJson(const json& j, const std::string& path, const Reader& 
   return c;
 }
 
-std::string HtmlEscape(const std::string& s) { return XmlEscape(s); }
 
 // Text inside <script>: "</script" (any case) would end the element. It can only stand in a
 // string, a regular expression or a comment there, where "<\/" means the same.
@@ -231,12 +230,12 @@ json ViewPageJson(const ReportView& v, const std::string& base_dir) {
 }
 
 std::string TableHtml(const ReportTable& t) {
-  std::string s = "<h3>" + HtmlEscape(t.title) + "</h3>\n<table class=\"summary\">\n<tr>";
-  for (const std::string& h : t.header) s += "<th>" + HtmlEscape(h) + "</th>";
+  std::string s = "<h3>" + XmlEscape(t.title) + "</h3>\n<table class=\"summary\">\n<tr>";
+  for (const std::string& h : t.header) s += "<th>" + XmlEscape(h) + "</th>";
   s += "</tr>\n";
   for (const auto& row : t.rows) {
     s += "<tr>";
-    for (const std::string& c : row) s += "<td>" + HtmlEscape(c) + "</td>";
+    for (const std::string& c : row) s += "<td>" + XmlEscape(c) + "</td>";
     s += "</tr>\n";
   }
   return s + "</table>\n";
@@ -653,11 +652,11 @@ std::string RenderHtmlReport(const ReportDocument& doc, const LeafletAssets& lea
   json page = {{"views", json::array()}};
   for (const ReportView& v : doc.views) page["views"].push_back(ViewPageJson(v, base_dir));
   std::string body;
-  body += "<h1>" + HtmlEscape(doc.title) + "</h1>\n";
-  for (const std::string& n : doc.notes) body += "<p class=\"note\">" + HtmlEscape(n) + "</p>\n";
+  body += "<h1>" + XmlEscape(doc.title) + "</h1>\n";
+  for (const std::string& n : doc.notes) body += "<p class=\"note\">" + XmlEscape(n) + "</p>\n";
   for (size_t i = 0; i < doc.views.size(); ++i) {
     const ReportView& v = doc.views[i];
-    if (!v.name.empty()) body += "<h2>" + HtmlEscape(v.name) + "</h2>\n";
+    if (!v.name.empty()) body += "<h2>" + XmlEscape(v.name) + "</h2>\n";
     body += fmt::format("<div class=\"map\" id=\"map-{}\"></div>\n", i);
     if (v.chart && !v.chart->series.empty()) {
       std::string svg = RenderChartSvg(*v.chart, 1100, 260);
@@ -667,13 +666,13 @@ std::string RenderHtmlReport(const ReportDocument& doc, const LeafletAssets& lea
   }
   if (!doc.tables.empty()) body += "<h2>Summary</h2>\n";
   for (const ReportTable& t : doc.tables) body += TableHtml(t);
-  if (!doc.text.empty()) body += "<pre class=\"settings\">" + HtmlEscape(doc.text) + "</pre>\n";
-  body += "<h2>Run settings</h2>\n<pre class=\"settings\">" + HtmlEscape(doc.settings.dump(2)) +
+  if (!doc.text.empty()) body += "<pre class=\"settings\">" + XmlEscape(doc.text) + "</pre>\n";
+  body += "<h2>Run settings</h2>\n<pre class=\"settings\">" + XmlEscape(doc.settings.dump(2)) +
           "</pre>\n";
   body += fmt::format(
       "<p class=\"note\">Made by optinav ({}); map by Leaflet {} (BSD-2-Clause), inlined: this "
       "file needs no network.</p>\n",
-      HtmlEscape(doc.kind), HtmlEscape(leaflet.version));
+      XmlEscape(doc.kind), XmlEscape(leaflet.version));
   return fmt::format(
       "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
       "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n"
@@ -681,7 +680,7 @@ std::string RenderHtmlReport(const ReportDocument& doc, const LeafletAssets& lea
       "</head>\n<body>\n<div id=\"report-status\" data-state=\"loading\" data-errors=\"0\"></div>\n"
       "{}<script type=\"application/json\" id=\"report-data\">{}</script>\n"
       "<script>\n{}\n</script>\n<script>{}</script>\n</body>\n</html>\n",
-      HtmlEscape(doc.title), kErrorHook, leaflet.css, kPageStyle, body, ScriptSafe(page.dump()),
+      XmlEscape(doc.title), kErrorHook, leaflet.css, kPageStyle, body, ScriptSafe(page.dump()),
       ScriptSafe(leaflet.js), kPageScript);
 }
 
