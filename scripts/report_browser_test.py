@@ -11,6 +11,7 @@ Debian's headless Chromium and checks that
     outputs call for (mission: 2 paths and start + target per run, one dot per found fix in the
     runs' steps.csv; bench gnss: the document's visible layers);
   - the page loads nothing from the network;
+  - a click on a fix opens its popup (time, error, method; inliers for a mission);
 and saves a screenshot of each. Exit 77 (ctest: skipped) only when chromium is not installed.
 
 Usage: report_browser_test.py OPTINAV_BINARY SHARED_DATA_DIR [--work DIR] [--shots DIR]
@@ -60,7 +61,7 @@ def visible(view, items):
     return [x for x in items if x.get("layer") not in hidden]
 
 
-def check_report(html_path, expected, shot_path):
+def check_report(html_path, expected, shot_path, popup_words=()):
     html = open(html_path, encoding="utf-8").read()
     # Offline: the file has no <link> and no script or image from a URL, and its style sheets
     # refer only to data URIs (checked again on the DOM the scripts built).
@@ -103,6 +104,22 @@ def check_report(html_path, expected, shot_path):
         fail("%s: no layer switcher" % html_path)
     if "<svg" not in dom:
         fail("%s: no error chart" % html_path)
+    # A click on the first fix opens its popup with the time, error, method and inliers.
+    clicked = html_path + ".click.html"
+    with open(clicked, "w", encoding="utf-8") as f:
+        f.write(html.replace("</body>", """<script>window.addEventListener('load', function () {
+  document.querySelector('path.optinav-fix').dispatchEvent(
+      new MouseEvent('click', {bubbles: true, clientX: 1, clientY: 1}));
+});</script></body>"""))
+    p = chromium(["--enable-logging=stderr", "--v=0", "--window-size=1280,1600", "--dump-dom",
+                  "file://" + os.path.abspath(clicked)])
+    popup = re.search(r'<div class="leaflet-popup-content"[^>]*>(.*?)</div>', p.stdout)
+    if not popup:
+        fail("%s: clicking a fix opened no popup" % html_path)
+    for word in ("time ", " s<br>error ", " m<br>method ") + tuple(popup_words):
+        if word not in popup.group(1):
+            fail("%s: the fix popup lacks '%s': %s" % (html_path, word, popup.group(1)))
+    print("ok: fix popup: " + popup.group(1))
     p = chromium(["--window-size=1200,1500", "--screenshot=" + shot_path, url])
     if p.returncode != 0 or not os.path.isfile(shot_path):
         fail("no screenshot of %s:\n%s" % (html_path, p.stderr[-2000:]))
@@ -168,7 +185,7 @@ def main():
         if expected["fix"] == 0:
             fail("the mission found no fix: nothing to check the dots against")
         check_report(os.path.join(mission, "report.html"), expected,
-                     os.path.join(shots, "report_mission.png"))
+                     os.path.join(shots, "report_mission.png"), popup_words=["inliers "])
         # `optinav report DIR --out` renders the same document again.
         again = os.path.join(work, "again.html")
         run([a.optinav, "report", mission, "--out", again])

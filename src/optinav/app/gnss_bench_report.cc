@@ -367,8 +367,7 @@ std::string ConditionColour(Condition c) {
 }
 
 // The run whose GNSS samples are shown: an aligned run (its samples were used), the first seed
-// of the outliers condition (else the
-// noisiest one present), Huber when it ran.
+// of the outliers condition (else the noisiest one present), Huber when it ran.
 const GnssRunResult* SamplesRun(const Runs& runs, const std::string& sequence) {
   const GnssRunResult* best = nullptr;
   const auto rank = [](const GnssRunResult& r) {

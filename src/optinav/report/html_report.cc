@@ -139,7 +139,6 @@ ReportChart ChartFromJson(const json& j, const std::string& path, const Reader& 
   return c;
 }
 
-
 // Text inside <script>: "</script" (any case) would end the element. It can only stand in a
 // string, a regular expression or a comment there, where "<\/" means the same.
 std::string ScriptSafe(std::string s) {
