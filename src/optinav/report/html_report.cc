@@ -565,7 +565,7 @@ LeafletAssets LoadLeafletAssets() {
 }
 
 std::string RenderChartSvg(const ReportChart& c, int width, int height) {
-  constexpr double kLeft = 60, kRight = 16, kTop = 30, kBottom = 36;
+  constexpr double kLeft = 60, kRight = 16, kTop = 44, kBottom = 36;  // title, legend: 2 lines
   double x0 = INFINITY, x1 = -INFINITY, y1 = 0;
   for (const ReportSeries& s : c.series)
     for (size_t i = 0; i < s.x.size(); ++i) {
@@ -614,12 +614,12 @@ std::string RenderChartSvg(const ReportChart& c, int width, int height) {
     svg.Text(kLeft + 6, kTop + 12,
              fmt::format("values above {} pinned to the top", FormatTick(y1, yt.step)), 10, "start",
              "fill=\"#666666\"");
-  double lx = width - kRight;  // legend, right-aligned on the title line
+  double lx = width - kRight;  // legend, right-aligned on the line under the title
   for (auto it = c.series.rbegin(); it != c.series.rend(); ++it) {
     if (it->name.empty()) continue;
     lx -= 34 + 6.5 * it->name.size();
-    svg.Line(lx, 12, lx + 20, 12, it->colour_hex, it->dots ? 5 : 2);
-    svg.Text(lx + 24, 16, it->name, 11);
+    svg.Line(lx, 28, lx + 20, 28, it->colour_hex, it->dots ? 5 : 2);
+    svg.Text(lx + 24, 32, it->name, 11);
   }
   for (const ReportSeries& s : c.series) {
     const std::string title =

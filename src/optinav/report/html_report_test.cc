@@ -147,7 +147,7 @@ TEST(HtmlReport, ChartScalesToTheData) {
   const ReportChart c{"t", "time (s)", "error (m)", {{"e", "#ff0000", {0, 10}, {0, 4}, false}}};
   const std::string svg = RenderChartSvg(c, 400, 200);
   // Left end at the axis origin (x = 60, y = 200 - 36), right end at the top-right of the plot.
-  EXPECT_NE(svg.find("points=\"60.0,164.0 384.0,30.0 \""), std::string::npos) << svg;
+  EXPECT_NE(svg.find("points=\"60.0,164.0 384.0,44.0 \""), std::string::npos) << svg;
 }
 
 // A picture in UTM zone 14N, 2 m pixels, rotated grid-north-up: the Mercator image's pixel at a
