@@ -425,8 +425,7 @@ report::ReportView SequenceView(const GnssBenchSequenceInfo& seq, const Runs& ru
       const auto it = rejected.find(s.t_ns);
       v.fixes.push_back({layer, fmt::format("GNSS sample at {:.1f} s", t_s),
                          Eigen::Vector2d(s.position_enu_m.y(), s.position_enu_m.x()), t_s, error_m,
-                         "gnss", -1, it == rejected.end(),
-                         it == rejected.end() ? "" : "rejected: " + it->second});
+                         "gnss", -1, it == rejected.end(), it == rejected.end() ? "" : it->second});
       dots.x.push_back(t_s);
       dots.y.push_back(error_m);
     }

@@ -202,8 +202,7 @@ void WriteGnssReportDocument(const VioRunSettings& st, const vio::GnssInput& inp
     v.fixes.push_back({"GNSS samples", fmt::format("GNSS sample at {:.1f} s", t_s),
                        Eigen::Vector2d(s.position_enu_m.y(), s.position_enu_m.x()), t_s, error_m,
                        vs_truth ? "gnss (error to the truth)" : "gnss (residual to the output)", -1,
-                       it == rejected.end(),
-                       it == rejected.end() ? "" : "rejected: " + it->second});
+                       it == rejected.end(), it == rejected.end() ? "" : it->second});
     dots.x.push_back(t_s);
     dots.y.push_back(error_m);
   }
