@@ -26,7 +26,11 @@ PACKAGES=(
   libeigen3-dev libceres-dev libopencv-dev libgdal-dev gdal-bin libproj-dev proj-bin
   libyaml-cpp-dev libspdlog-dev libfmt-dev libcli11-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev libsqlite3-dev sqlite3 libtbb-dev libpng-dev
+  chromium
 )
+# npm vendors Leaflet into the build for `optinav report` (scripts/vendor_leaflet.sh); a machine
+# with Node.js from elsewhere (e.g. NodeSource, which bundles npm) keeps its own.
+if ! command -v npm >/dev/null 2>&1; then PACKAGES+=(npm); fi
 
 missing=()
 for p in "${PACKAGES[@]}"; do

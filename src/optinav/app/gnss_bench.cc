@@ -20,6 +20,7 @@
 #include "optinav/io/gnss_io.h"
 #include "optinav/io/text_parse.h"
 #include "optinav/io/trajectory_io.h"
+#include "optinav/report/html_report.h"
 #include "optinav/sim/sensors.h"
 #include "optinav/sim/simulation.h"
 #include "optinav/util/error.h"
@@ -83,7 +84,7 @@ std::string GnssBenchOptions::Check() const {
   if (!(scale > 0 && std::isfinite(scale)))
     return fmt::format("--scale must be > 0, got {}", scale);
   if (!(duration_s >= 0 && std::isfinite(duration_s)))
-    return fmt::format("duration_s must be >= 0, got {}", duration_s);
+    return fmt::format("--duration must be >= 0, got {}", duration_s);
   if (const std::string e = fusion.Check(); !e.empty()) return "--gnss " + e;
   return "";
 }
@@ -256,6 +257,9 @@ bool LoadRun(const fs::path& stem, const vio::GnssFusionOptions& fusion, GnssRun
     r->aligned = j.at("enu_aligned").get<bool>();
     r->backend_median_ms = JsonNumber(j, "backend_median_ms");
     r->backend_keyframe_median_ms = JsonNumber(j, "backend_keyframe_median_ms");
+    if (j.contains("rejected_samples"))  // runs saved before the HTML report have none
+      for (const nlohmann::json& x : j.at("rejected_samples"))
+        r->gnss_rejected.emplace_back(x.at(0).get<int64_t>(), x.at(1).get<std::string>());
     r->estimate = io::ReadTrajectory(tum_path.string());
     if (r->aligned && r->condition) r->live = io::ReadTrajectory(stem.string() + ".live.tum");
     return !r->estimate.empty();
@@ -280,7 +284,8 @@ void SaveRun(const fs::path& stem, const vio::GnssFusionOptions& fusion, const G
                             {"enu_aligned", r.aligned},
                             {"backend_median_ms", r.backend_median_ms},
                             {"backend_keyframe_median_ms", r.backend_keyframe_median_ms},
-                            {"gnss_settings", FusionSettings(fusion)}};
+                            {"gnss_settings", FusionSettings(fusion)},
+                            {"rejected_samples", r.gnss_rejected}};
   io::WriteFileAtomically(stem.string() + ".json", j.dump(2) + "\n");
 }
 
@@ -306,6 +311,8 @@ void RunVio(const GnssBenchSequenceInfo& seq, const vio::GnssFusionOptions& fusi
   r->lost = v.lost.size();
   r->factors = v.gnss_stats.factors;
   r->rejected = v.gnss_stats.rejected;
+  for (const vio::RejectedGnss& g : v.gnss_rejected)
+    r->gnss_rejected.emplace_back(g.t_ns, g.reason);
   if (v.timing.count("backend")) r->backend_median_ms = v.timing.at("backend").median_s * 1e3;
   if (v.timing.count("backend_keyframe"))
     r->backend_keyframe_median_ms = v.timing.at("backend_keyframe").median_s * 1e3;
@@ -418,6 +425,7 @@ void Evaluate(const GnssBenchSequenceInfo& seq, const Trajectory* vio_alone, Gns
     eval::AlignTrajectory(synced.ref, &global, a);
   }
   r->error_over_time = ErrorOverTime(synced.ref, global, seq.truth.t_ns.front());
+  r->global = global;
   r->global_rmse = RmseFrom(r->error_over_time, -INFINITY);
   r->global_rmse_10s = RmseFrom(r->error_over_time, 10.0);
   if (const auto window = OutageWindow(seq, *r))
@@ -505,6 +513,17 @@ void WriteResults(const GnssBenchOptions& options, const GnssBenchResult& result
   io::WriteFileAtomically((out / "tables.md").string(), result.tables);
   for (const GnssBenchSequenceInfo& s : result.sequences)
     internal::WriteGnssErrorPlot((out / ("error_" + s.name + ".svg")).string(), result.runs, s);
+  nlohmann::json settings = {{"seeds", options.seeds},
+                             {"scale", options.scale},
+                             {"duration_s", options.duration_s},
+                             {"jobs", options.jobs},
+                             {"fusion", FusionSettings(options.fusion)}};
+  for (GnssBenchSequence q : options.sequences)
+    settings["sequences"].push_back(GnssBenchSequenceName(q));
+  for (GnssCondition c : options.conditions) settings["conditions"].push_back(ConditionSpec(c).key);
+  for (vio::GnssNorm n : options.norms) settings["norms"].push_back(NormLabel(n));
+  internal::WriteGnssBenchReportDocument(ReportDocumentPath(options.out_dir), result.sequences,
+                                         result.runs, settings, result.tables);
 }
 
 }  // namespace
@@ -589,6 +608,7 @@ GnssBenchResult RunGnssBench(const GnssBenchOptions& options, const GnssBenchPro
                   {.file = options.out_dir});
     ThrowIfUnfinished(*plan);
   }
+  if (options.html) report::LoadLeafletAssets();  // missing: say so before the runs, not after
   fs::create_directories(fs::path(options.out_dir) / "runs");
   if (options.task >= 0) {  // one task of a planned sweep: its run files, no tables
     const std::vector<PlannedRun> runs = PlannedRuns(options);
@@ -634,6 +654,7 @@ GnssBenchResult RunGnssBench(const GnssBenchOptions& options, const GnssBenchPro
   result.tables = internal::GnssBenchTables(result.sequences, options.conditions, options.norms,
                                             result.runs, &result.never_worse);
   WriteResults(options, result);
+  if (options.html) result.html = WriteHtmlReport(options.out_dir);
   return result;
 }
 

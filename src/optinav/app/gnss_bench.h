@@ -6,7 +6,8 @@
 // Per sequence the VIO runs alone once (the reference of every row), then once per condition x
 // norm x seed, `jobs` runs in parallel. Output folder: sequences/ (rendered), runs/ (per run
 // <stem>.tum, <stem>.live.tum, <stem>.json; --reuse takes them back), results.csv,
-// results.json, tables.md and error_<sequence>.svg (docs/FORMATS.md).
+// results.json, tables.md, error_<sequence>.svg and report.json (the HTML report's document;
+// report.html with `html`) (docs/FORMATS.md).
 #pragma once
 
 #include <cmath>
@@ -19,6 +20,7 @@
 #include <Eigen/Core>
 
 #include "optinav/app/slurm_plan.h"
+#include "optinav/app/html_report.h"
 #include "optinav/geometry/trajectory.h"
 #include "optinav/vio/gnss_fusion.h"
 
@@ -72,6 +74,7 @@ struct GnssBenchOptions {
   // Merge a planned sweep in out_dir: every task must have finished (else Error listing those
   // that have not, with their logs); nothing is rendered or run.
   bool merge = false;
+  bool html = false;  // also render report.html (app/html_report.h) at the end
 
   // "" when valid, else a message that starts with the flag at fault ("--seeds must be ...").
   std::string Check() const;
@@ -106,8 +109,13 @@ struct GnssRunResult {
          err_10s_after = NAN, recovery_s = NAN;
   std::vector<std::pair<double, double>> error_over_time;  // (s, m), unaligned
   std::vector<std::pair<double, double>> live_error_over_time;
-  Trajectory estimate;   // as output (ENU when aligned, else the VIO world)
-  Trajectory live;       // GNSS runs with an alignment: the live estimate in ENU
+  Trajectory estimate;  // as output (ENU when aligned, else the VIO world)
+  Trajectory live;      // GNSS runs with an alignment: the live estimate in ENU
+  // What the global error is measured on (ENU; the VIO alone: aligned on its first 5 s), synced
+  // to the truth; empty without a global error.
+  Trajectory global;
+  // GNSS samples the fusion did not use: time and reason (the HTML report marks them).
+  std::vector<std::pair<int64_t, std::string>> gnss_rejected;
   bool aligned = false;  // ENU alignment made (GNSS runs)
   bool reused = false;   // loaded from out_dir/runs (--reuse)
 };
@@ -116,8 +124,9 @@ struct GnssBenchResult {
   std::vector<GnssBenchSequenceInfo> sequences;
   // The VIO alone per sequence, then every sequence x condition x norm x seed.
   std::vector<GnssRunResult> runs;
-  std::string tables;       // as printed and written to tables.md
-  bool never_worse = true;  // every fused run's ATE <= 1.05 x the VIO alone's
+  std::string tables;                    // as printed and written to tables.md
+  bool never_worse = true;               // every fused run's ATE <= 1.05 x the VIO alone's
+  std::optional<HtmlReportResult> html;  // when options.html
 };
 
 // One line of progress (no newline): a sequence rendered, a run finished. Called from one thread

@@ -2,10 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 
 #include <fmt/format.h>
 
 #include "optinav/io/text_parse.h"
+#include "optinav/report/html_report.h"
 #include "optinav/report/svg.h"
 
 namespace optinav::app::internal {
@@ -316,6 +318,160 @@ void WriteGnssErrorPlot(const std::string& path, const Runs& runs,
   svg.Line(left, H - bottom, W - right, H - bottom, "black", 1);
   svg.Line(left, top, left, H - bottom, "black", 1);
   io::WriteFileAtomically(path, svg.Finish());
+}
+
+}  // namespace optinav::app::internal
+
+namespace optinav::app::internal {
+namespace {
+
+constexpr size_t kMaxPathPoints = 1500;
+
+// [north, east] of every k-th pose, at most kMaxPathPoints (Leaflet's order in a local view).
+std::vector<Eigen::Vector2d> LocalPoints(const Trajectory& t) {
+  std::vector<Eigen::Vector2d> pts;
+  const size_t step = std::max<size_t>(1, t.size() / kMaxPathPoints);
+  for (size_t i = 0; i < t.size(); i += step)
+    pts.emplace_back(t.positions[i].y(), t.positions[i].x());
+  return pts;
+}
+
+report::ReportSeries ErrorSeries(const std::string& name, const std::string& colour,
+                                 const std::vector<std::pair<double, double>>& curve) {
+  report::ReportSeries s{name, colour, {}, {}, false};
+  const size_t step = std::max<size_t>(1, curve.size() / kMaxPathPoints);
+  for (size_t i = 0; i < curve.size(); i += step) {
+    s.x.push_back(curve[i].first);
+    s.y.push_back(curve[i].second);
+  }
+  return s;
+}
+
+std::string ConditionColour(Condition c) {
+  if (!c) return "#777777";
+  switch (*c) {
+    case GnssCondition::kIdeal:
+      return "#17becf";
+    case GnssCondition::kSigma0_5:
+      return "#9467bd";
+    case GnssCondition::kSigma1_5:
+      return "#8c564b";
+    case GnssCondition::kSigma3:
+      return "#1f77b4";
+    case GnssCondition::kOutliers:
+      return "#2ca02c";
+    case GnssCondition::kOutage:
+      return "#d62728";
+  }
+  return "#000000";
+}
+
+// The run whose GNSS samples are shown: an aligned run (its samples were used), the first seed
+// of the outliers condition (else the noisiest one present), Huber when it ran.
+const GnssRunResult* SamplesRun(const Runs& runs, const std::string& sequence) {
+  const GnssRunResult* best = nullptr;
+  const auto rank = [](const GnssRunResult& r) {
+    const GnssCondition c = *r.condition;
+    return (r.aligned ? 1000 : 0) + (c == GnssCondition::kOutliers ? 100 : 0) +
+           static_cast<int>(c) * 10 + (*r.norm == vio::GnssNorm::kHuber ? 5 : 0) - r.seed;
+  };
+  for (const GnssRunResult& r : runs)
+    if (r.ok && r.condition && r.sequence == sequence && (!best || rank(r) > rank(*best)))
+      best = &r;
+  return best;
+}
+
+report::ReportView SequenceView(const GnssBenchSequenceInfo& seq, const Runs& runs) {
+  report::ReportView v;
+  v.name = fmt::format("{} flight ({:.0f} m): local ENU frame, metres", seq.name, seq.length_m);
+  v.frame = "local";
+  v.paths.push_back({"ground truth", "ground truth", "#14a03c", 3, false, LocalPoints(seq.truth)});
+  report::ReportChart chart{"global position error (no alignment)", "time (s)", "error (m)", {}};
+  // Huber's layers start shown (or the first norm's when Huber did not run); the others hidden.
+  std::optional<vio::GnssNorm> shown;
+  for (const GnssRunResult& r : runs)
+    if (r.sequence == seq.name && r.norm && (!shown || *r.norm == vio::GnssNorm::kHuber))
+      shown = r.norm;
+  for (const GnssRunResult& r : runs) {
+    if (r.sequence != seq.name || !r.ok || r.global.empty()) continue;
+    const std::string layer = r.condition ? ConditionLabel(r.condition) + ", " + NormLabel(r.norm)
+                                          : std::string("VIO alone (first 5 s aligned)");
+    const std::string name =
+        r.condition ? fmt::format("{}, seed {}: global RMSE {:.2f} m", layer, r.seed, r.global_rmse)
+                    : fmt::format("VIO alone: global RMSE {:.2f} m", r.global_rmse);
+    v.paths.push_back({layer, name, ConditionColour(r.condition), r.condition ? 1.5 : 2,
+                       r.norm && *r.norm == vio::GnssNorm::kL2, LocalPoints(r.global)});
+    if (r.norm != shown && r.condition &&
+        std::find(v.hidden_layers.begin(), v.hidden_layers.end(), layer) == v.hidden_layers.end())
+      v.hidden_layers.push_back(layer);
+    if (r.seed <= 1 && r.norm == (r.condition ? shown : std::nullopt))
+      chart.series.push_back(ErrorSeries(r.condition ? ConditionLabel(r.condition) : "VIO alone",
+                                         ConditionColour(r.condition), r.error_over_time));
+  }
+  if (const GnssRunResult* g = SamplesRun(runs, seq.name)) {
+    const std::vector<vio::GnssSample> samples = MakeConditionGnss(
+        seq.truth, seq.lever_arm_in_body, seq.outage_start_s, *g->condition, g->seed);
+    std::map<int64_t, std::string> rejected(g->gnss_rejected.begin(), g->gnss_rejected.end());
+    const std::string layer =
+        fmt::format("GNSS samples ({}, {}, seed {})", ConditionLabel(g->condition),
+                    NormLabel(g->norm), g->seed);
+    report::ReportSeries dots{"GNSS sample error", "#c828c8", {}, {}, true};
+    for (const vio::GnssSample& s : samples) {
+      const auto pose = seq.truth.InterpolateAt(s.t_ns);
+      if (!pose) continue;
+      const Eigen::Vector3d antenna = *pose * seq.lever_arm_in_body;
+      const double error_m = (s.position_enu_m - antenna).norm();
+      const double t_s = (s.t_ns - seq.truth.t_ns.front()) * 1e-9;
+      const auto it = rejected.find(s.t_ns);
+      v.fixes.push_back({layer, fmt::format("GNSS sample at {:.1f} s", t_s),
+                         Eigen::Vector2d(s.position_enu_m.y(), s.position_enu_m.x()), t_s, error_m,
+                         "gnss", -1, it == rejected.end(), it == rejected.end() ? "" : it->second});
+      dots.x.push_back(t_s);
+      dots.y.push_back(error_m);
+    }
+    v.fix_error_scale_m = 3 * ConditionSpec(*g->condition).sigma_m + 1;
+    chart.series.insert(chart.series.begin(), std::move(dots));
+  }
+  v.markers.push_back({"start / end", "start", "start", LocalPoints(seq.truth).front()});
+  v.markers.push_back(
+      {"start / end", "end", "end",
+       Eigen::Vector2d(seq.truth.positions.back().y(), seq.truth.positions.back().x())});
+  v.chart = std::move(chart);
+  return v;
+}
+
+std::string F3(double v) { return std::isfinite(v) ? fmt::format("{:.3f}", v) : "-"; }
+
+}  // namespace
+
+void WriteGnssBenchReportDocument(const std::string& path,
+                                  const std::vector<GnssBenchSequenceInfo>& sequences,
+                                  const std::vector<GnssRunResult>& runs,
+                                  const nlohmann::json& settings, const std::string& tables) {
+  report::ReportDocument doc;
+  doc.kind = "bench gnss";
+  doc.title =
+      fmt::format("optinav bench gnss: {} run(s) on {} sequence(s)", runs.size(), sequences.size());
+  doc.notes.push_back(
+      "Paths: the fused output in the local ENU frame of the GNSS origin (the VIO alone aligned "
+      "on its first 5 s); one layer per condition and norm (Huber shown, the others in the layer "
+      "switcher). Dots: one run's GNSS samples coloured by their error, rejected ones ringed red.");
+  for (const GnssBenchSequenceInfo& s : sequences) doc.views.push_back(SequenceView(s, runs));
+  report::ReportTable t{
+      "Runs (errors in m)",
+      {"sequence", "condition", "norm", "seed", "ATE SE(3)", "global RMSE", "global from 10 s",
+       "live ATE", "live global", "factors", "rejected", "status"},
+      {}};
+  for (const GnssRunResult& r : runs)
+    t.rows.push_back({r.sequence, ConditionLabel(r.condition), NormLabel(r.norm),
+                      std::to_string(r.seed), F3(r.ate_se3), F3(r.global_rmse),
+                      F3(r.global_rmse_10s), F3(r.ate_se3_live), F3(r.global_rmse_live),
+                      std::to_string(r.factors), std::to_string(r.rejected),
+                      r.ok ? (r.reused ? "ok (reused)" : "ok") : "failed: " + r.error});
+  doc.tables.push_back(std::move(t));
+  doc.settings = settings;
+  doc.text = tables;
+  report::WriteReportDocument(path, doc);
 }
 
 }  // namespace optinav::app::internal

@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include "optinav/report/html_report.h"
 #include "optinav/util/testing.h"
 
 namespace fs = std::filesystem;
@@ -205,6 +206,25 @@ TEST(GnssBenchRun, SmallRoomRunAndReuse) {
   const std::string csv = testing::ReadFile(out / "results.csv");
   EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 3);
   EXPECT_NE(csv.find("\nroom,ideal,huber,1,1,1,"), std::string::npos);
+  // The HTML report's document: truth, the VIO alone and the fused run in ENU, the fused run's
+  // GNSS samples as fixes.
+  const report::ReportDocument doc = report::ReadReportDocument((out / "report.json").string());
+  EXPECT_EQ(doc.kind, "bench gnss");
+  ASSERT_EQ(doc.views.size(), 1u);
+  const report::ReportView& v = doc.views[0];
+  EXPECT_EQ(v.frame, "local");
+  ASSERT_EQ(v.paths.size(), 3u);
+  EXPECT_EQ(v.paths[0].layer, "ground truth");
+  EXPECT_EQ(v.paths[1].layer, "VIO alone (first 5 s aligned)");
+  EXPECT_EQ(v.paths[2].layer, "ideal, huber");
+  const std::vector<vio::GnssSample> samples =
+      MakeConditionGnss(first.sequences[0].truth, first.sequences[0].lever_arm_in_body,
+                        first.sequences[0].outage_start_s, GnssCondition::kIdeal, 1);
+  ASSERT_EQ(v.fixes.size(), samples.size());
+  EXPECT_LT(v.fixes[10].error_m, 1e-3);  // ideal: the antenna itself
+  EXPECT_NEAR(v.fixes[10].point.x(), samples[10].position_enu_m.y(), 1e-3);  // [north, east]
+  ASSERT_EQ(doc.tables.size(), 1u);
+  EXPECT_EQ(doc.tables[0].rows.size(), 2u);
 
   // --reuse: no rendering, no VIO run, the same figures.
   o.reuse = true;

@@ -12,10 +12,13 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "optinav/app/html_report.h"
 #include "optinav/io/text_parse.h"
 #include "optinav/maploc/map_db.h"
 #include "optinav/nav/frame_effects.h"
 #include "optinav/report/geo_export.h"
+#include "optinav/report/html_report.h"
+#include "optinav/report/map_overlay.h"
 #include "optinav/report/map_plot.h"
 #include "optinav/sim/weather.h"
 #include "optinav/util/error.h"
@@ -71,7 +74,8 @@ struct Background {
   cv::Mat image;
   double scale = 1;  // picture px per map px
 };
-Background LoadBackground(const maploc::MapDatabase& db, const std::string& ortho, int max_side) {
+Background LoadBackground(const maploc::MapDatabase& db, const std::string& ortho, int max_side,
+                          bool lighten = true) {
   const geo::GeoRaster raster = geo::GeoRaster::Open(ortho);
   Background b;
   b.scale = std::min(1.0, max_side / static_cast<double>(std::max(db.width, db.height)));
@@ -79,7 +83,7 @@ Background LoadBackground(const maploc::MapDatabase& db, const std::string& orth
   const int h = std::max(1, static_cast<int>(db.height * b.scale));
   b.image = raster.ReadGray(0, 0, db.width, db.height, w, h);
   // Lighten so the paths stand out.
-  b.image.convertTo(b.image, CV_8U, 0.6, 90);
+  if (lighten) b.image.convertTo(b.image, CV_8U, 0.6, 90);
   return b;
 }
 
@@ -387,6 +391,125 @@ void WriteAllRunsOutputs(const MissionExperimentOptions& opt, Setup& s, const Ba
   report::WriteMapPlot((out / "summary").string(), plot);
 }
 
+// ---------------------------------------------------------------------------------------------
+// The report document (report.json + report_map.jpg) for `optinav report` / --html.
+
+std::string Fmt(double v, int decimals) {
+  return std::isfinite(v) ? fmt::format("{:.{}f}", v, decimals) : std::string("n/a");
+}
+
+report::ReportTable SummaryTable(const MissionExperimentResult& r) {
+  const double steps = r.steps;
+  report::ReportTable t{"Key figures", {"figure", "value"}, {}};
+  const auto row = [&](const std::string& k, const std::string& v) { t.rows.push_back({k, v}); };
+  row("runs reached / flown", fmt::format("{} / {}", r.reached, r.runs.size()));
+  row("success radius (m)", Fmt(r.success_radius_m, 0));
+  row("steps", std::to_string(r.steps));
+  row("fixes found (% of steps)", Fmt(100.0 * r.fixes_found / steps, 1));
+  row("fixes accepted (% of steps)", Fmt(100.0 * r.fixes_accepted / steps, 1));
+  row("fix error median / p95 / max (m)",
+      r.fix_error_m ? fmt::format("{} / {} / {}", Fmt(r.fix_error_m->median, 2),
+                                  Fmt(r.fix_error_m->p95, 2), Fmt(r.fix_error_m->max, 2))
+                    : std::string("no fix"));
+  row("estimate error median / p95 / max (m)",
+      fmt::format("{} / {} / {}", Fmt(r.estimate_error_m.median, 2), Fmt(r.estimate_error_m.p95, 2),
+                  Fmt(r.estimate_error_m.max, 2)));
+  row("final distance to target median / max (m)",
+      fmt::format("{} / {}", Fmt(r.final_distance_m.median, 1), Fmt(r.final_distance_m.max, 1)));
+  row("localization per step (ms, mean)", Fmt(r.timing_ms.localization.mean, 2));
+  row("navigation step (ms, mean)", Fmt(r.timing_ms.navigation.mean, 2));
+  return t;
+}
+
+report::ReportTable RunsTable(const MissionExperimentResult& r) {
+  report::ReportTable t{"Runs",
+                        {"run", "straight (m)", "flown (m)", "steps", "reached", "end",
+                         "final distance (m)", "fix rate", "median fix error (m)"},
+                        {}};
+  for (const MissionRunOutcome& run : r.runs) {
+    const nav::MissionResult& m = run.mission;
+    t.rows.push_back({std::to_string(run.run), Fmt(m.straight_distance_m, 0), Fmt(m.flown_m, 0),
+                      std::to_string(m.steps.size()), m.reached ? "yes" : "NO", m.end_reason,
+                      Fmt(m.final_distance_m, 1), Fmt(run.fix_rate, 2),
+                      Fmt(run.median_fix_error_m, 2)});
+  }
+  return t;
+}
+
+Eigen::Vector2d LatLonPoint(const geo::LatLon& ll) { return {ll.lat_deg, ll.lon_deg}; }
+
+void WriteMissionReport(const MissionExperimentOptions& opt, Setup& s,
+                        const MissionExperimentResult& r) {
+  const fs::path out(opt.out_dir);
+  nav::Mission& m = *s.mission;
+  // The orthophoto, resampled to Web Mercator so Leaflet places it exactly.
+  const Background bg = LoadBackground(s.db, s.ortho, 1400, /*lighten=*/false);
+  const report::MercatorImage merc = report::ToMercatorImage(
+      bg.image,
+      [&](const geo::LatLon& ll) -> Eigen::Vector2d {
+        const Eigen::Vector2d map_px = m.locator().LatLonToPixel(ll);
+        return {map_px.x() * bg.scale, map_px.y() * bg.scale};
+      },
+      [&](const Eigen::Vector2d& px) {
+        return m.locator().PixelToLatLon({px.x() / bg.scale, px.y() / bg.scale});
+      },
+      std::min(1400, std::max(bg.image.cols, bg.image.rows)));
+  report::WriteJpeg((out / "report_map.jpg").string(), merc.image, 80);
+
+  report::ReportView v;
+  v.name = fmt::format("{} over {}", r.runs.size() == 1 ? "the mission" : "every run",
+                       fs::path(s.db.ortho_path).filename().string());
+  v.image = report::ReportImage{"report_map.jpg", LatLonPoint(merc.south_west),
+                                LatLonPoint(merc.north_east)};
+  report::ReportChart chart{"error over time", "time (s)", "error (m)", {}};
+  report::ReportSeries fixes{"fix error (found fixes)", kFix.Hex(), {}, {}, true};
+  for (const MissionRunOutcome& run : r.runs) {
+    const std::string n = std::to_string(run.run);
+    const RunPaths p = Paths(run.mission);
+    report::ReportPath truth{
+        "true paths", "run " + n + ": true path", kTruth.Hex(), 2.5, false, {}};
+    report::ReportPath est{
+        "estimated paths", "run " + n + ": estimated path", kEstimate.Hex(), 1.5, true, {}};
+    for (const geo::LatLon& ll : p.truth) truth.points.push_back(LatLonPoint(ll));
+    for (const geo::LatLon& ll : p.estimate) est.points.push_back(LatLonPoint(ll));
+    v.paths.push_back(std::move(truth));
+    v.paths.push_back(std::move(est));
+    report::ReportSeries err{run.run == 1 ? "estimate error" : "", kEstimate.Hex(), {}, {}, false};
+    for (const nav::StepLog& l : run.mission.steps) {
+      err.x.push_back(l.t_s);
+      err.y.push_back(l.estimate_error_m);
+      if (!l.fix_found) continue;
+      fixes.x.push_back(l.t_s);
+      fixes.y.push_back(l.fix_error_m);
+      v.fixes.push_back({"fixes", "run " + n + ", step " + std::to_string(l.step),
+                         LatLonPoint(l.fix), l.t_s, l.fix_error_m, l.fix_method, l.inliers,
+                         l.fix_accepted, l.fix_accepted ? "" : l.fix_reason});
+    }
+    chart.series.push_back(std::move(err));
+    v.markers.push_back({"start / target", "start " + n, "start", LatLonPoint(run.start)});
+    v.markers.push_back({"start / target", "target " + n + (run.mission.reached ? "" : " (missed)"),
+                         "target", LatLonPoint(run.target)});
+    if (!run.mission.reached)
+      v.markers.push_back({"start / target",
+                           fmt::format("end {} ({:.0f} m short)", n, run.mission.final_distance_m),
+                           "end", LatLonPoint(run.mission.steps.back().truth)});
+  }
+  chart.series.insert(chart.series.begin(), std::move(fixes));  // under the lines
+  v.chart = std::move(chart);
+  report::ReportDocument doc;
+  doc.kind = "mission";
+  doc.title =
+      fmt::format("optinav mission: {} run(s), {} reached the target", r.runs.size(), r.reached);
+  doc.notes.push_back(fmt::format(
+      "map {}, frames from {}, weather {}, {} m/s; fixes are coloured by their error (click one "
+      "for time, error, method, inliers)",
+      opt.map_path, s.frames->path(), s.weather.ToString(), opt.mission.speed_m_s));
+  doc.views.push_back(std::move(v));
+  doc.tables = {SummaryTable(r), RunsTable(r)};
+  doc.settings = r.summary.at("settings");
+  report::WriteReportDocument(ReportDocumentPath(opt.out_dir), doc);
+}
+
 }  // namespace
 
 std::string MissionExperimentOptions::Check() const {
@@ -406,6 +529,7 @@ MissionExperimentResult RunMissionExperiment(
     const MissionExperimentOptions& opt,
     const std::function<void(const MissionRunOutcome&)>& on_run) {
   if (const std::string e = opt.Check(); !e.empty()) throw Error(e);
+  if (opt.html) report::LoadLeafletAssets();  // missing: say so before the runs, not after
   const std::unique_ptr<Setup> s = PrepareSetup(opt);
   io::PrepareOutputDir(opt.out_dir, opt.force, io::OnForce::kWriteInto, "--out", "summary.json");
   io::MarkInProgress(opt.out_dir, "optinav mission");
@@ -435,6 +559,8 @@ MissionExperimentResult RunMissionExperiment(
   Summarize(samples, result);
   result.summary = SummaryJson(opt, *s, samples, result);
   WriteAllRunsOutputs(opt, *s, bg.get(), result);
+  WriteMissionReport(opt, *s, result);
+  if (opt.html) result.html = WriteHtmlReport(opt.out_dir);
   // Written last: the folder's completion marker (a folder without it is an interrupted run).
   io::ClearInProgress(opt.out_dir);
   io::WriteFileAtomically((out / "summary.json").string(), result.summary.dump(2) + "\n");
@@ -472,7 +598,7 @@ std::string FormatMissionSummary(const MissionExperimentResult& r) {
       "  localization (the three)          %7.2f +- %-6.2f   0.507 +- 0.152\n"
       "  frame-to-frame odometry           %7.2f +- %-6.2f\n"
       "  navigation step (all of it)       %7.2f +- %-6.2f   -> %.0f steps/s on one core\n"
-      "wrote %s/summary.json, summary.png/.svg, paths.geojson/.kml, run_NNN/\n",
+      "wrote %s/summary.json, summary.png/.svg, paths.geojson/.kml, report.json, run_NNN/\n",
       r.reached, static_cast<int>(r.runs.size()), r.success_radius_m, r.final_distance_m.median,
       r.final_distance_m.max, 100.0 * r.fixes_found / steps, r.steps,
       100.0 * r.fixes_accepted / steps, fix_med, fix_med / r.map_gsd_m, fix_p95,

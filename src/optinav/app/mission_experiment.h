@@ -1,6 +1,7 @@
 // The mission experiment behind `optinav mission` (also run by `optinav demo`): seeded GNSS-denied
 // flights over a map database, each run's outcome, the summary figures, and in the output folder
-// summary.json, pictures (PNG + SVG) and GIS files (GeoJSON, KML), per run and for all runs.
+// summary.json, pictures (PNG + SVG) and GIS files (GeoJSON, KML), per run and for all runs, and
+// the HTML report's document (report.json + report_map.jpg; report.html with `html`).
 //
 // The driver prints nothing on stdout: the caller prints the table (FormatMissionRunHeader/Row as
 // the runs finish, through the callback, then FormatMissionSummary).
@@ -13,6 +14,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "optinav/app/html_report.h"
 #include "optinav/geo/geo.h"
 #include "optinav/nav/mission.h"
 #include "optinav/util/statistics.h"
@@ -33,6 +35,7 @@ struct MissionExperimentOptions {
   std::string weather = "none";
   std::string pictures = "all";  // all | summary | none
   bool save_frames = false;      // every camera frame to run_NNN/frames/
+  bool html = false;             // also render report.html (app/html_report.h) at the end
   int runs = 1;                  // seeds mission.seed .. mission.seed + runs - 1
   // Per-run settings; start, target, weather and keep_frames are filled in per run.
   nav::MissionOptions mission;
@@ -65,7 +68,8 @@ struct MissionExperimentResult {
   MissionTimings timing_ms;
   double navigation_steps_per_second = 0;
   std::string out_dir;
-  nlohmann::json summary;  // as written to summary.json
+  nlohmann::json summary;                // as written to summary.json
+  std::optional<HtmlReportResult> html;  // when options.html
 
   bool all_reached() const { return reached == static_cast<int>(runs.size()); }
 };

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include "optinav/maploc/map_db.h"
+#include "optinav/report/html_report.h"
 #include "optinav/sim/synthetic_ortho.h"
 #include "optinav/util/error.h"
 #include "optinav/util/testing.h"
@@ -114,6 +115,41 @@ TEST_F(MissionExperimentTest, SeededRunsReachTheTargetAndWriteTheSummary) {
     EXPECT_GT(fs::file_size(fs::path(opt.out_dir) / f), 100u) << f;
   }
   EXPECT_FALSE(fs::exists(fs::path(opt.out_dir) / "run_001" / "path.png"));
+
+  // The HTML report's document: what the page draws, from the same runs.
+  const report::ReportDocument doc = report::ReadReportDocument(ReportDocumentPath(opt.out_dir));
+  EXPECT_EQ(doc.kind, "mission");
+  ASSERT_EQ(doc.views.size(), 1u);
+  const report::ReportView& v = doc.views[0];
+  EXPECT_EQ(v.frame, "wgs84");
+  ASSERT_TRUE(v.image);
+  EXPECT_GT(fs::file_size(fs::path(opt.out_dir) / v.image->file), 1000u);
+  ASSERT_EQ(v.paths.size(), 4u);  // true and estimated, per run
+  EXPECT_EQ(v.paths[0].layer, "true paths");
+  EXPECT_EQ(v.paths[3].layer, "estimated paths");
+  EXPECT_EQ(v.paths[0].points.size(), r.runs[0].mission.steps.size());
+  ASSERT_EQ(v.fixes.size(), static_cast<size_t>(r.fixes_found));
+  const nav::StepLog& step = r.runs[0].mission.steps[3];
+  EXPECT_NEAR(v.fixes[3].point.x(), step.fix.lat_deg, 1e-7);
+  EXPECT_NEAR(v.fixes[3].point.y(), step.fix.lon_deg, 1e-7);
+  EXPECT_NEAR(v.fixes[3].error_m, step.fix_error_m, 1e-3);
+  EXPECT_NEAR(v.fixes[3].t_s, step.t_s, 1e-3);
+  EXPECT_EQ(v.fixes[3].method, step.fix_method);
+  EXPECT_EQ(v.fixes[3].inliers, step.inliers);
+  ASSERT_EQ(v.markers.size(), 4u);  // start and target per run; no run missed
+  EXPECT_EQ(v.markers[1].kind, "target");
+  EXPECT_NEAR(v.markers[1].point.x(), r.runs[0].target.lat_deg, 1e-7);
+  // The map image covers every path.
+  for (const report::ReportPath& p : v.paths)
+    for (const Eigen::Vector2d& ll : p.points) {
+      EXPECT_GT(ll.x(), v.image->min.x());
+      EXPECT_LT(ll.x(), v.image->max.x());
+      EXPECT_GT(ll.y(), v.image->min.y());
+      EXPECT_LT(ll.y(), v.image->max.y());
+    }
+  ASSERT_TRUE(v.chart);
+  EXPECT_EQ(v.chart->series.size(), 3u);  // the fixes' errors, the estimate error per run
+  EXPECT_EQ(doc.settings, s["settings"]);
 
   // The printed table says the same.
   EXPECT_NE(FormatMissionSummary(r).find("reached 2/2 (within 50 m)"), std::string::npos);

@@ -1,11 +1,17 @@
 #include "optinav/app/vio_run.h"
 
+#include <algorithm>
+#include <filesystem>
+#include <map>
+
 #include <fmt/format.h>
 
+#include "optinav/eval/metrics.h"
 #include "optinav/geo/geo.h"
 #include "optinav/io/text_parse.h"
 #include "optinav/io/trajectory_io.h"
 #include "optinav/report/geo_export.h"
+#include "optinav/report/html_report.h"
 #include "optinav/util/error.h"
 #include "optinav/util/logging.h"
 
@@ -139,6 +145,126 @@ void WriteGnssOutputs(const VioRunSettings& st, const vio::GnssInput& input, con
   }
 }
 
+// [north, east] of every k-th pose (Leaflet's order in a local view).
+std::vector<Eigen::Vector2d> LocalPoints(const Trajectory& t) {
+  constexpr size_t kMaxPoints = 2000;
+  std::vector<Eigen::Vector2d> pts;
+  const size_t step = std::max<size_t>(1, t.size() / kMaxPoints);
+  for (size_t i = 0; i < t.size(); i += step)
+    pts.emplace_back(t.positions[i].y(), t.positions[i].x());
+  return pts;
+}
+
+// TRAJ.report.json: the output, the live estimate and the dataset's ground truth (when it has
+// one) in the local ENU frame, every GNSS sample as a fix (its error against the truth's antenna
+// position, else its residual to the output; rejected ones with their reason), the error over
+// time; the figures and the settings.
+void WriteGnssReportDocument(const VioRunSettings& st, const vio::GnssInput& input,
+                             const Trajectory& body, VioRunReport* report) {
+  const vio::VioRunResult& r = report->run;
+  report::ReportView v;
+  v.name = "trajectories in the local ENU frame of the GNSS origin (metres)";
+  v.frame = "local";
+  const bool enu = report->frame == "enu";
+  std::optional<Trajectory> truth;
+  const std::string truth_path = st.dataset + "/mav0/state_groundtruth_estimate0/data.csv";
+  if (std::filesystem::is_regular_file(truth_path)) {
+    try {
+      truth = io::ReadTrajectory(truth_path);
+    } catch (const Error& e) {
+      spdlog::warn("report: ground truth not shown: {}", e.what());
+    }
+  }
+  if (truth && !truth->empty())
+    v.paths.push_back(
+        {"ground truth", "ground truth (the dataset's)", "#14a03c", 3, false, LocalPoints(*truth)});
+  if (enu) {
+    v.paths.push_back(
+        {"output (smoothed)", "output: " + st.out, "#e66e14", 2, false, LocalPoints(body)});
+    v.paths.push_back({"live estimate", "live estimate", "#1f77b4", 1.5, true,
+                       LocalPoints(vio::EstimatesToEnuTrajectory(r.estimates))});
+  }
+  std::map<int64_t, std::string> rejected;
+  for (const vio::RejectedGnss& g : r.gnss_rejected) rejected.emplace(g.t_ns, g.reason);
+  const Trajectory& reference = truth && !truth->empty() ? *truth : body;
+  const bool vs_truth = truth && !truth->empty();
+  const int64_t t0 = reference.empty() ? 0 : reference.t_ns.front();
+  report::ReportChart chart{"error over time (no alignment)", "time (s)", "error (m)", {}};
+  report::ReportSeries dots{
+      vs_truth ? "GNSS sample error" : "GNSS residual to the output", "#c828c8", {}, {}, true};
+  for (const vio::GnssSample& s : input.samples) {
+    const auto pose = reference.InterpolateAt(s.t_ns);
+    const double error_m = pose && (vs_truth || enu)
+                               ? (s.position_enu_m - *pose * input.lever_arm_in_body).norm()
+                               : NAN;
+    const double t_s = (s.t_ns - t0) * 1e-9;
+    const auto it = rejected.find(s.t_ns);
+    v.fixes.push_back({"GNSS samples", fmt::format("GNSS sample at {:.1f} s", t_s),
+                       Eigen::Vector2d(s.position_enu_m.y(), s.position_enu_m.x()), t_s, error_m,
+                       vs_truth ? "gnss (error to the truth)" : "gnss (residual to the output)", -1,
+                       it == rejected.end(), it == rejected.end() ? "" : it->second});
+    dots.x.push_back(t_s);
+    dots.y.push_back(error_m);
+  }
+  chart.series.push_back(std::move(dots));
+  v.fix_error_scale_m = 3 * input.default_sigma_m + 1;  // red: beyond what the noise explains
+  if (vs_truth && enu) {
+    const eval::SyncedPair synced = eval::Synchronize(*truth, body);
+    const eval::ErrorSeries e =
+        eval::ComputeApe(synced.ref, synced.est, eval::PoseRelation::kTranslation);
+    report::ReportSeries line{"output error", "#e66e14", {}, {}, false};
+    for (size_t i = 0; i < e.errors.size(); ++i) {
+      line.x.push_back((synced.ref.t_ns[e.indices[i]] - t0) * 1e-9);
+      line.y.push_back(e.errors[i]);
+    }
+    chart.series.push_back(std::move(line));
+  }
+  v.chart = std::move(chart);
+  const Trajectory& start_end = enu ? body : reference;
+  if (!start_end.empty()) {
+    v.markers.push_back({"start / end", "start", "start", LocalPoints(start_end).front()});
+    const Eigen::Vector3d end = start_end.positions.back();
+    v.markers.push_back({"start / end", "end", "end", {end.y(), end.x()}});
+  }
+  report::ReportDocument doc;
+  doc.kind = "vio gnss";
+  doc.title = "optinav vio --gnss: " + st.dataset;
+  const std::string summary = FormatVioSummary(st, *report);
+  for (size_t a = 0, b; a < summary.size(); a = b + 1) {
+    b = summary.find('\n', a);
+    if (b == std::string::npos) b = summary.size();
+    if (b > a) doc.notes.push_back(summary.substr(a, b - a));
+  }
+  if (!enu) doc.notes.push_back("the ENU alignment was never made: no output path is drawn");
+  doc.views.push_back(std::move(v));
+  const vio::GnssFusionStats& g = r.gnss_stats;
+  doc.tables.push_back({"GNSS fusion",
+                        {"figure", "value"},
+                        {{"samples", std::to_string(g.received)},
+                         {"factors", std::to_string(g.factors)},
+                         {"rejected", std::to_string(g.rejected)},
+                         {"alignments", std::to_string(g.alignments)},
+                         {"poses", std::to_string(r.estimates.size())},
+                         {"lost intervals", std::to_string(r.lost.size())},
+                         {"output frame", report->frame}}});
+  doc.settings = {
+      {"dataset", st.dataset},
+      {"out", st.out},
+      {"gnss_file", input.file},
+      {"norm", vio::GnssNormName(st.gnss_fusion.norm)},
+      {"time_mode", vio::GnssTimeModeName(st.gnss_fusion.time_mode)},
+      {"default_sigma_m", input.default_sigma_m},
+      {"lever_arm_in_body_m",
+       {input.lever_arm_in_body.x(), input.lever_arm_in_body.y(), input.lever_arm_in_body.z()}},
+      {"stats", VioStatsJson(*report)}};
+  if (input.origin_lat_lon_height)
+    doc.settings["enu_origin_lat_lon_height"] = {(*input.origin_lat_lon_height)[0],
+                                                 (*input.origin_lat_lon_height)[1],
+                                                 (*input.origin_lat_lon_height)[2]};
+  report->report_document = StemOf(st.out) + ".report.json";
+  report::WriteReportDocument(report->report_document, doc);
+}
+
 }  // namespace
 
 std::string VioRunSettings::Check() const {
@@ -148,6 +274,7 @@ std::string VioRunSettings::Check() const {
     return fmt::format("--inject-backend-delay-ms must be in [0, 10000], got {}",
                        injected_backend_delay_ms);
   if (gnss && loop_closure.value_or(false)) return "--loop-closure cannot be on with GNSS fusion";
+  if (html && !gnss) return "--html needs --gnss (the report shows the fused run)";
   // (A config file's stereo mode is found when the run loads it.)
   if (gnss && (format == VioDatasetFormat::kAirsim || mode == vio::VioMode::kStereo))
     return "--gnss fusion needs a EuRoC dataset in stereo-imu mode";
@@ -160,6 +287,7 @@ std::string VioRunSettings::Check() const {
 
 VioRunReport RunVioDataset(const VioRunSettings& st) {
   if (const std::string m = st.Check(); !m.empty()) throw Error(m);
+  if (st.html) report::LoadLeafletAssets();  // missing: say so before the run, not after
   std::optional<vio::GnssInput> gnss_input;
   const vio::VioRunOptions options = MakeRunOptions(st, &gnss_input);
   VioRunReport report;
@@ -174,6 +302,8 @@ VioRunReport RunVioDataset(const VioRunSettings& st) {
   if (st.gnss) WriteGnssOutputs(st, *gnss_input, body, &report);
   if (!st.stats_path.empty())
     io::WriteFileAtomically(st.stats_path, VioStatsJson(report).dump(2) + "\n");
+  if (st.gnss) WriteGnssReportDocument(st, *gnss_input, body, &report);
+  if (st.html) report.html = WriteHtmlReport(report.report_document);
   for (const vio::LostInterval& l : report.run.lost)
     spdlog::warn("lost {:.3f} s .. {:.3f} s: {}", l.start_ns * 1e-9, l.end_ns * 1e-9, l.reason);
   return report;

@@ -1,7 +1,8 @@
 // The VIO run behind `optinav vio`: loads the options, runs vio::RunVioOnEuroc / RunVioOnAirsim
 // (optionally fusing GNSS) and writes the trajectory, the camera and pre-loop-closure
 // trajectories, the statistics JSON and, with GNSS, the side outputs (rejected samples, the live
-// estimate, WGS84 csv, GeoJSON). Every file is written atomically.
+// estimate, WGS84 csv, GeoJSON, the HTML report's document TRAJ.report.json). Every file is
+// written atomically.
 #pragma once
 
 #include <optional>
@@ -9,6 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "optinav/app/html_report.h"
 #include "optinav/vio/gnss_input.h"
 #include "optinav/vio/pipeline.h"
 
@@ -36,6 +38,9 @@ struct VioRunSettings {
   // GNSS side outputs; empty: beside `out` (TRAJ.gnss_rejected.csv; TRAJ.live.tum when the output
   // is smoothed; TRAJ.wgs84.csv and TRAJ.geojson when the ENU origin is known).
   std::string gnss_live_out, wgs84_out, geojson_out, gnss_rejected_out;
+  // With GNSS, the HTML report's document is always written (TRAJ.report.json); html: also
+  // render TRAJ.report.html (app/html_report.h) at the end.
+  bool html = false;
 
   // Empty when valid, else a message that starts with the flag at fault ("--gnss-sigma ...").
   std::string Check() const;
@@ -47,6 +52,8 @@ struct VioRunReport {
   std::string frame = "world";  // of `out`: "world", or "enu" once GNSS aligned it
   // The GNSS side outputs as resolved (defaults beside `out`); live: empty when not written.
   std::string gnss_live_out, wgs84_out, gnss_rejected_out;
+  std::string report_document;           // TRAJ.report.json (GNSS runs)
+  std::optional<HtmlReportResult> html;  // when settings.html
 };
 
 // Throws Error on invalid settings (Check()), bad input (naming file/line/field), a GNSS request

@@ -12,6 +12,7 @@
 
 #include "optinav/eval/metrics.h"
 #include "optinav/io/trajectory_io.h"
+#include "optinav/report/html_report.h"
 #include "optinav/sim/simulation.h"
 #include "optinav/util/error.h"
 #include "optinav/util/testing.h"
@@ -135,6 +136,24 @@ TEST_F(VioRunTest, GnssFusionWritesEnuAndSideOutputs) {
     EXPECT_TRUE(j["gnss"].contains(key)) << key;
   EXPECT_NE(FormatVioSummary(st, r).find("trajectory in ENU (smoothed over the run"),
             std::string::npos);
+  // The HTML report's document beside the trajectory: truth, output and live estimate in ENU,
+  // every GNSS sample with the rejected ones marked.
+  EXPECT_EQ(r.report_document, Out("fused.report.json"));
+  const report::ReportDocument doc = report::ReadReportDocument(r.report_document);
+  EXPECT_EQ(doc.kind, "vio gnss");
+  ASSERT_EQ(doc.views.size(), 1u);
+  const report::ReportView& v = doc.views[0];
+  ASSERT_EQ(v.paths.size(), 3u);
+  EXPECT_EQ(v.paths[0].layer, "ground truth");
+  EXPECT_EQ(v.paths[1].layer, "output (smoothed)");
+  EXPECT_EQ(v.fixes.size(), 51u);
+  size_t rejected = 0;
+  for (const report::ReportFix& f : v.fixes) {
+    rejected += !f.accepted;
+    EXPECT_TRUE(std::isfinite(f.error_m));
+  }
+  EXPECT_EQ(rejected, r.run.gnss_stats.rejected);
+  EXPECT_FALSE(r.html);  // only with --html
 }
 
 TEST(VioRunSettings, CheckNamesTheFlag) {

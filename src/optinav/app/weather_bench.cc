@@ -15,6 +15,7 @@
 #include "optinav/eval/metrics.h"
 #include "optinav/io/text_parse.h"
 #include "optinav/io/trajectory_io.h"
+#include "optinav/report/html_report.h"
 #include "optinav/sim/simulation.h"
 #include "optinav/util/error.h"
 #include "optinav/util/file_lock.h"
@@ -245,6 +246,15 @@ double AteSe3(const eval::SyncedPair& synced) {
 void Evaluate(const Trajectory& truth, const std::string& stem, WeatherRunResult* r) {
   const eval::SyncedPair synced = eval::Synchronize(truth, io::ReadTrajectory(stem + ".tum"));
   r->mean_error_m = eval::MeanErrorAfterStartPose(synced.ref, synced.est);
+  r->truth = synced.ref;
+  r->aligned = synced.est;
+  eval::AlignTrajectory(synced.ref, &r->aligned,
+                        {.mode = eval::AlignMode::kNone, .align_origin = true});
+  const eval::ErrorSeries e =
+      eval::ComputeApe(synced.ref, r->aligned, eval::PoseRelation::kTranslation);
+  for (size_t i = 0; i < e.errors.size(); ++i)
+    r->error_over_time.emplace_back((synced.ref.t_ns[e.indices[i]] - truth.t_ns.front()) * 1e-9,
+                                    e.errors[i]);
   r->ape_rmse_se3_m = AteSe3(synced);
   // The truth is at the IMU rate: the frames it covers are the estimate's possible poses.
   r->coverage = r->frames ? static_cast<double>(synced.est.size()) / r->frames : NAN;
@@ -517,6 +527,7 @@ SlurmResources WeatherBenchTaskResources(const WeatherBenchOptions& o) {
 WeatherBenchResult RunWeatherBench(const WeatherBenchOptions& options,
                                    const WeatherBenchProgress& progress) {
   ThrowIfInvalid(options);
+  if (options.html) report::LoadLeafletAssets();  // missing: say so before the runs, not after
   const Timer timer;
   if (options.merge) {
     const std::optional<SlurmPlan> plan = ReadSlurmPlan(options.out_dir);
@@ -571,6 +582,7 @@ WeatherBenchResult RunWeatherBench(const WeatherBenchOptions& options,
   result.wall_s = timer.ElapsedSeconds();
   result.table = internal::WeatherBenchTable(options, result.cells, result.runs);
   internal::WriteWeatherBenchFiles(options, result);
+  if (options.html) result.html = WriteHtmlReport(options.out_dir);
   return result;
 }
 

@@ -11,7 +11,8 @@
 // same mean error of the odometry before loop closure, the lost intervals (the run is "lost", as
 // the document marks a sequence whose local map was lost, when the VIO reported any), frames
 // per second; per condition the ratio to clear (`none`) of the same world and mode. Outputs:
-// results.json, table.md, table.csv, weather_error.svg and weather_error.png (docs/WEATHER.md).
+// results.json, table.md, table.csv, weather_error.svg and weather_error.png (docs/WEATHER.md),
+// and report.json (the HTML report's document; report.html with `html`).
 #pragma once
 
 #include <cmath>
@@ -21,6 +22,8 @@
 #include <vector>
 
 #include "optinav/app/slurm_plan.h"
+#include "optinav/app/html_report.h"
+#include "optinav/geometry/trajectory.h"
 #include "optinav/sim/weather.h"
 #include "optinav/sim/world.h"
 #include "optinav/vio/estimator.h"
@@ -54,8 +57,9 @@ struct WeatherBenchOptions {
   // Empty: each world's SuiteConditions(). Else these for every world, road-* in urban only.
   std::vector<sim::WeatherSpec> conditions;
   std::vector<vio::VioMode> modes = {vio::VioMode::kStereo};
-  int seeds = 1;  // simulation seeds 1 .. seeds (world detail, particles, IMU noise)
-  int jobs = 1;   // sequences in parallel (each VIO run has three threads of its own)
+  int seeds = 1;      // simulation seeds 1 .. seeds (world detail, particles, IMU noise)
+  int jobs = 1;       // sequences in parallel (each VIO run has three threads of its own)
+  bool html = false;  // also render report.html (app/html_report.h) at the end
   // Keep complete sequences (their marker names the same options) and finished runs of them;
   // re-render interrupted ones. Without it everything is rendered and run again.
   bool reuse = false;
@@ -102,6 +106,10 @@ struct WeatherRunResult {
   size_t frames = 0, poses = 0, loops = 0;
   double coverage = NAN;  // poses matched to the ground truth / ground-truth frames
   std::vector<WeatherLost> lost;
+  // For the HTML report: the ground truth and the output with its first pose put on the truth's
+  // (the document metric's alignment), synchronized; the error over time (s, m) between them.
+  Trajectory truth, aligned;
+  std::vector<std::pair<double, double>> error_over_time;
   bool reused = false;
   bool Lost() const { return !lost.empty(); }
 };
@@ -124,6 +132,7 @@ struct WeatherBenchResult {
   std::vector<WeatherCell> cells;  // world, then condition, then mode, in the options' order
   std::string table;               // as printed and written to table.md
   double wall_s = 0;
+  std::optional<HtmlReportResult> html;  // when options.html
 };
 
 // One line of progress (no newline): a sequence rendered, a run finished. Called from one thread

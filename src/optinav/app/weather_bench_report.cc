@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "optinav/io/text_parse.h"
+#include "optinav/report/html_report.h"
 #include "optinav/report/svg.h"
 #include "optinav/util/error.h"
 
@@ -377,6 +378,87 @@ void WriteWeatherPlot(const std::string& stem, const WeatherBenchOptions& option
   cv.Write(stem);
 }
 
+namespace {
+
+constexpr size_t kMaxPoints = 1500;
+
+// [north, east] of every k-th pose (Leaflet's order in a local view).
+std::vector<Eigen::Vector2d> LocalPoints(const Trajectory& t) {
+  std::vector<Eigen::Vector2d> pts;
+  const size_t step = std::max<size_t>(1, t.size() / kMaxPoints);
+  for (size_t i = 0; i < t.size(); i += step)
+    pts.emplace_back(t.positions[i].y(), t.positions[i].x());
+  return pts;
+}
+
+std::string Fmt2(double v) { return std::isfinite(v) ? fmt::format("{:.2f}", v) : "-"; }
+
+// The HTML report's document: per world the ground truth and every run's output (first pose
+// aligned) in the local frame, the error over time, the run table and table.md.
+report::ReportDocument WeatherBenchReportDocument(const WeatherBenchOptions& options,
+                                                  const WeatherBenchResult& result) {
+  report::ReportDocument doc;
+  doc.kind = "bench weather";
+  doc.title = fmt::format("optinav bench weather: {} run(s)", result.runs.size());
+  doc.notes.push_back(
+      "Car route per world in the simulator's world frame (metres; no map): the ground truth and "
+      "each run's output with its first pose put on the truth's (the weather document's "
+      "metric), one layer per condition and mode.");
+  for (sim::WorldKind world : options.worlds) {
+    report::ReportView v;
+    v.name = WeatherBenchWorldName(world) + " world";
+    v.frame = "local";
+    report::ReportChart chart{"error over time (first pose aligned)", "time (s)", "error (m)", {}};
+    size_t k = 0, n = 0;
+    for (const WeatherRunResult& r : result.runs) n += r.world == world && r.ok;
+    for (const WeatherRunResult& r : result.runs) {
+      if (r.world != world || !r.ok || r.aligned.empty()) continue;
+      if (v.paths.empty()) {
+        v.paths.push_back(
+            {"ground truth", "ground truth", "#14a03c", 3, false, LocalPoints(r.truth)});
+        v.markers.push_back({"start / end", "start", "start", LocalPoints(r.truth).front()});
+        const Eigen::Vector3d end = r.truth.positions.back();
+        v.markers.push_back({"start / end", "end", "end", {end.y(), end.x()}});
+      }
+      const std::string colour =
+          report::ColorMap(n > 1 ? static_cast<double>(k) / (n - 1) : 0).Hex();
+      ++k;
+      const std::string layer =
+          fmt::format("{}, {}", r.condition.ToString(), vio::VioModeName(r.mode));
+      v.paths.push_back({layer,
+                         fmt::format("{}, seed {}: mean error {:.2f} m{}", layer, r.seed,
+                                     r.mean_error_m, r.Lost() ? " (lost)" : ""),
+                         colour, 1.5, r.mode == vio::VioMode::kStereoImu, LocalPoints(r.aligned)});
+      report::ReportSeries s{layer, colour, {}, {}, false};
+      const size_t step = std::max<size_t>(1, r.error_over_time.size() / kMaxPoints);
+      for (size_t i = 0; i < r.error_over_time.size(); i += step) {
+        s.x.push_back(r.error_over_time[i].first);
+        s.y.push_back(r.error_over_time[i].second);
+      }
+      chart.series.push_back(std::move(s));
+    }
+    if (chart.series.size() > 8)  // a legend of every run would not fit on the line
+      for (report::ReportSeries& s : chart.series) s.name.clear();
+    v.chart = std::move(chart);
+    doc.views.push_back(std::move(v));
+  }
+  report::ReportTable t{"Runs (errors in m)",
+                        {"sequence", "mode", "seed", "mean error", "odometry mean error",
+                         "APE SE(3)", "lost intervals", "fps", "status"},
+                        {}};
+  for (const WeatherRunResult& r : result.runs)
+    t.rows.push_back({r.sequence, vio::VioModeName(r.mode), std::to_string(r.seed),
+                      Fmt2(r.mean_error_m), Fmt2(r.odometry_mean_error_m), Fmt2(r.ape_rmse_se3_m),
+                      std::to_string(r.lost.size()), Fmt2(r.fps),
+                      r.ok ? (r.reused ? "ok (reused)" : "ok") : "failed: " + r.error});
+  doc.tables.push_back(std::move(t));
+  doc.text = result.table;
+  doc.settings = WeatherBenchJson(options, result).at("settings");
+  return doc;
+}
+
+}  // namespace
+
 void WriteWeatherBenchFiles(const WeatherBenchOptions& options, const WeatherBenchResult& result) {
   const fs::path out = options.out_dir;
   io::WriteFileAtomically((out / "table.md").string(), result.table);
@@ -384,6 +466,8 @@ void WriteWeatherBenchFiles(const WeatherBenchOptions& options, const WeatherBen
   io::WriteFileAtomically((out / "results.json").string(),
                           WeatherBenchJson(options, result).dump(2) + "\n");
   WriteWeatherPlot((out / "weather_error").string(), options, result.cells);
+  report::WriteReportDocument((out / "report.json").string(),
+                              WeatherBenchReportDocument(options, result));
 }
 
 }  // namespace optinav::app::internal

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "optinav/report/html_report.h"
 #include "optinav/util/testing.h"
 
 namespace fs = std::filesystem;
@@ -123,6 +124,16 @@ TEST(WeatherBench, ShortUrbanRouteClearAndDustThenReuse) {
   EXPECT_EQ(j.at("cells").size(), 2u);
   EXPECT_DOUBLE_EQ(j.at("cells")[1].at("orbslam3").at("mean_error_m").get<double>(), 2.68);
   EXPECT_DOUBLE_EQ(j.at("runs")[1].at("mean_error_m").get<double>(), r.runs[1].mean_error_m);
+  // The HTML report's document: the truth and both runs (first pose on the truth's).
+  const report::ReportDocument doc = report::ReadReportDocument((dir / "report.json").string());
+  EXPECT_EQ(doc.kind, "bench weather");
+  ASSERT_EQ(doc.views.size(), 1u);
+  ASSERT_EQ(doc.views[0].paths.size(), 3u);
+  EXPECT_EQ(doc.views[0].paths[2].layer, "dust:100, stereo");
+  EXPECT_NEAR((doc.views[0].paths[2].points[0] - doc.views[0].paths[0].points[0]).norm(), 0,
+              1e-3);  // the first pose is put on the truth's
+  ASSERT_TRUE(doc.views[0].chart);
+  EXPECT_EQ(doc.views[0].chart->series.size(), 2u);
   EXPECT_NE(r.table.find("| urban | dust:100 | stereo | "), std::string::npos) << r.table;
   EXPECT_EQ(testing::ReadFile(dir / "table.md"), r.table);
   const std::string csv = testing::ReadFile(dir / "table.csv");

@@ -251,6 +251,22 @@ grep -q "feature extraction" "$WORK/out.txt" || fail "mission table lacks the ti
 expect_error "mission into a non-empty folder" "not empty" "$BIN" mission --map "$WORK/naip.db" \
   --start $S --target $G --out "$WORK/mission"
 grep -q '"runs": 2' "$WORK/mission/summary.json" || fail "refused mission touched the old summary"
+
+# --- The HTML report (issue 23) of the mission above; the browser test is report/browser.
+expect_ok "report" "$BIN" report "$WORK/mission" --out "$WORK/mission_report.html"
+grep -q "^report: $WORK/mission_report.html (" "$WORK/out.txt" || fail "report: no summary line"
+grep -q 'id="map-0"' "$WORK/mission_report.html" || fail "report: no map in the page"
+mkdir -p "$WORK/empty"
+expect_error "report of a folder without report.json" "no report.json" "$BIN" report "$WORK/empty"
+[[ $(ls "$WORK/empty" | wc -l) -eq 0 ]] || fail "a refused report wrote into the folder"
+expect_error "report without the vendored Leaflet" "scripts/vendor_leaflet.sh" \
+  env OPTINAV_LEAFLET_DIR="$WORK/empty" "$BIN" report "$WORK/mission" --out "$WORK/r2.html"
+[[ ! -e "$WORK/r2.html" ]] || fail "a refused report wrote its output"
+echo '{"format": "optinav-report", "version": 1, "kind": "mission",
+  "views": [{"paths": [{"points": [[1]]}]}]}' \
+  > "$WORK/empty/bad.report.json"
+expect_error "report of a malformed document" "field 'views[0].paths[0].points[0]'" \
+  "$BIN" report "$WORK/empty"
 expect_error "mission start outside" "start 10.000000,10.000000 is outside the map" "$BIN" mission \
   --map "$WORK/naip.db" --start 10,10 --target $G --out "$WORK/m2"
 expect_error "mission start = target" "within the arrival radius" "$BIN" mission \

@@ -5,6 +5,12 @@
 
 namespace optinav {
 
+namespace app {
+struct HtmlReportResult;
+}  // namespace app
+// The line the commands print after writing an HTML report (report_command.cc).
+void PrintHtmlReportLine(const app::HtmlReportResult& result);
+
 int RunEval(int argc, char** argv);     // optinav eval ape|rpe REF EST ...
 int RunMap(int argc, char** argv);      // optinav map build|info|locate|render ...
 int RunSim(int argc, char** argv);      // optinav sim ... | optinav sim suite ...
@@ -13,5 +19,6 @@ int RunVio(int argc, char** argv);      // optinav vio --dataset DIR --out TRAJ.
 int RunBench(int argc, char** argv);    // optinav bench gnss|weather --out DIR ...
 int RunWeatherBench(int argc, char** argv);  // optinav bench weather (through RunBench)
 int RunDemo(int argc, char** argv);          // optinav demo --out DIR ...
+int RunReport(int argc, char** argv);        // optinav report DIR [--out FILE.html]
 
 }  // namespace optinav

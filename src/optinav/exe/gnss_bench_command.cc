@@ -48,20 +48,22 @@ void AddFlags(CLI::App& app, app::GnssBenchOptions* o, BenchFlags* f) {
   cli::AddGnssFusionFlags(app, &f->fusion);
   app.add_option("--scale", o->scale, "image size factor of the rendered sequences")
       ->capture_default_str();
+  app.add_option("--duration", o->duration_s,
+                 "seconds of each sequence to render (0: room 100 s, outdoor 200 s)")
+      ->capture_default_str();
   app.add_option("--jobs", o->jobs, "runs in parallel (each VIO run is single-threaded)")
       ->capture_default_str();
   app.add_flag(
       "--reuse", o->reuse,
       "reuse complete sequences in OUT/sequences and finished runs in OUT/runs (resume, add "
       "seeds; in a planned folder: merge the tasks' runs)");
-  app.add_option("--duration", o->duration_s, "sequence length (s; 0: room 100, outdoor 200)")
-      ->capture_default_str();
   app.add_option(
       "--plan", f->plan,
       "slurm: write OUT/plan.json and OUT/submit.sbatch (a job array) instead of running");
   app.add_option("--slurm-args", f->slurm_args,
                  "extra sbatch options for the planned tasks (override the derived resources)");
   app.add_option("--task", o->task, "run only task N of the plan (OUT/plan.json)");
+  app.add_flag("--html", o->html, "also write the HTML report OUT/report.html (optinav report)");
 }
 
 // The list and fusion flags into `o`, then o->Check().
@@ -126,8 +128,10 @@ int RunGnssBenchArgs(int argc, char** argv) {
     std::printf("never worse than VIO alone (every row, every seed, 5 %% margin): %s\n",
                 result.never_worse ? "yes" : "NO");
     std::printf(
-        "bench gnss: results.csv, results.json, tables.md, error_*.svg, runs/*.tum+json -> %s\n",
+        "bench gnss: results.csv, results.json, tables.md, error_*.svg, report.json, "
+        "runs/*.tum+json -> %s\n",
         options.out_dir.c_str());
+    if (result.html) PrintHtmlReportLine(*result.html);
     return 0;
   };
   return cli::RunCli(app, argc, argv, run, {.default_log_level = "warn"});

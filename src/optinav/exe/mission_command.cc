@@ -71,6 +71,7 @@ void AddMissionFlags(CLI::App& app, app::MissionExperimentOptions& a, MissionFla
       "fixes only: the estimate is the latest fix, keep the last bearing when a fix fails");
   app.add_option("--pictures", a.pictures, "all | summary | none")->capture_default_str();
   app.add_flag("--save-frames", a.save_frames, "write every camera frame to run_NNN/frames/");
+  app.add_flag("--html", a.html, "also write the HTML report DIR/report.html (optinav report)");
 }
 
 // "random" or LAT,LON (Error naming the flag when malformed).
@@ -97,6 +98,7 @@ int Run(app::MissionExperimentOptions& a, const MissionFlags& f) {
         std::fflush(stdout);
       });
   std::fputs(app::FormatMissionSummary(r).c_str(), stdout);
+  if (r.html) PrintHtmlReportLine(*r.html);
   return r.all_reached() ? 0 : 3;
 }
 

@@ -28,6 +28,8 @@ constexpr Command kCommands[] = {
      "GNSS-denied missions to a target over an orthophoto map (30-run experiments)"},
     {"vio", optinav::RunVio, "stereo visual-inertial odometry on a EuRoC/ASL dataset"},
     {"bench", optinav::RunBench, "benchmarks: bench gnss (GNSS fusion table on simulated flights)"},
+    {"report", optinav::RunReport,
+     "one self-contained HTML report (map, paths, fixes, errors) of a command's output"},
     {"demo", optinav::RunDemo, "run the end-to-end demo on generated data"},
 };
 

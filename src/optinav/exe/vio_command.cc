@@ -78,6 +78,8 @@ void AddGnssOptions(CLI::App& cmd, app::VioRunSettings* st, VioFlags* f) {
   cli::OutputFile(
       cmd.add_option("--gnss-rejected-out", st->gnss_rejected_out,
                      "rejected GNSS samples with their reason (default TRAJ.gnss_rejected.csv)"));
+  cmd.add_flag("--html", st->html,
+               "also write the HTML report TRAJ.report.html (optinav report; needs --gnss)");
 }
 
 // "A,B,C" of `flag` -> three numbers; a malformed value is a usage error.
@@ -144,6 +146,7 @@ int RunVio(int argc, char** argv) {
     Resolve(flags, &st);
     const app::VioRunReport report = app::RunVioDataset(st);
     std::fputs(app::FormatVioSummary(st, report).c_str(), stdout);
+    if (report.html) PrintHtmlReportLine(*report.html);
     return 0;
   });
 }

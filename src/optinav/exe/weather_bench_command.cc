@@ -45,6 +45,7 @@ void AddFlags(CLI::App& app, app::WeatherBenchOptions* o, WeatherFlags* f) {
   app.add_option("--slurm-args", f->slurm_args,
                  "extra sbatch options for the planned tasks (override the derived resources)");
   app.add_option("--task", o->task, "run only task N of the plan (OUT/plan.json)");
+  app.add_flag("--html", o->html, "also write the HTML report OUT/report.html (optinav report)");
 }
 
 void ApplyFlags(const WeatherFlags& f, app::WeatherBenchOptions* o) {
@@ -91,8 +92,9 @@ int RunWeatherBenchArgs(int argc, char** argv) {
     std::printf("\n%s\n", result.table.c_str());
     std::printf(
         "bench weather: %zu runs in %.0f s; results.json, table.md, table.csv, "
-        "weather_error.svg/.png -> %s\n",
+        "weather_error.svg/.png, report.json -> %s\n",
         result.runs.size(), result.wall_s, options.out_dir.c_str());
+    if (result.html) PrintHtmlReportLine(*result.html);
     return 0;
   };
   return cli::RunCli(app, argc, argv, run, {.default_log_level = "warn"});

@@ -27,4 +27,12 @@ nlohmann::json GnssBenchJson(const std::vector<GnssBenchSequenceInfo>& sequences
 void WriteGnssErrorPlot(const std::string& path, const std::vector<GnssRunResult>& runs,
                         const GnssBenchSequenceInfo& sequence);
 
+// The HTML report's document: per sequence a map in the local ENU frame (truth, the VIO alone,
+// every fused run's output, one layer per condition x norm), the GNSS samples of one run as fixes
+// coloured by their error (rejected ones marked), the global error over time; the run table.
+void WriteGnssBenchReportDocument(const std::string& path,
+                                  const std::vector<GnssBenchSequenceInfo>& sequences,
+                                  const std::vector<GnssRunResult>& runs,
+                                  const nlohmann::json& settings, const std::string& tables);
+
 }  // namespace optinav::app::internal
