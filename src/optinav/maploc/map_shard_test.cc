@@ -62,7 +62,7 @@ TEST(ShardedBuild, FourShardsMergeIntoTheSameMap) {
   const fs::path dir = testing::MakeTempDir("map_shards");
   testmaps::BuildNaip2009Map(dir);
   // As stored (a tile's width is read back as px1 - px0).
-  const MapDatabase whole = LoadMapDatabase((dir / "naip2009.db").string());
+  const MapDatabase whole = LoadMapDatabase((dir / "naip2009_orb.db").string());
   MapBuildOptions o = whole.options;
   o.threads = 2;
   std::vector<std::string> parts;
@@ -103,7 +103,7 @@ TEST(ShardedBuild, FourShardsMergeIntoTheSameMap) {
   const MapCheckReport check = CheckMapDatabase(out);
   ExpectSameTiles(whole, check.db);
   EXPECT_EQ(check.features, whole.FeatureCount());
-  EXPECT_EQ(testing::ReadFile(out), testing::ReadFile(dir / "naip2009.db"));
+  EXPECT_EQ(testing::ReadFile(out), testing::ReadFile(dir / "naip2009_orb.db"));
 
   // locate: the same fixes from either map (frames cut from 2012, prior within 200 m).
   const geo::GeoRaster flight = geo::GeoRaster::Open(testmaps::Naip("20120731"));
