@@ -153,7 +153,21 @@ class Case:
         self.bin, self.data, self.work = binary, data, work
 
 
-class EvalCase(Case):
+class FileOutputsCase(Case):
+    """A command whose outputs are files: each is checked by its validator in self.validators
+    unless it is the old content put in place by prepare() (self.old)."""
+
+    def cmd(self):
+        return self.args
+
+    def check(self, tag):
+        for p, v in self.validators.items():
+            s = file_state(p, self.old.get(p), v)
+            if s.startswith("broken"):
+                fail(f"{tag}: {os.path.basename(p)} {s}")
+
+
+class EvalCase(FileOutputsCase):
     name = "eval"
 
     def setup(self):
@@ -181,15 +195,6 @@ class EvalCase(Case):
                 with open(p, "wb") as f:
                     f.write(content)
                 self.old[p] = content
-
-    def cmd(self):
-        return self.args
-
-    def check(self, tag):
-        for p, v in self.validators.items():
-            s = file_state(p, self.old.get(p), v)
-            if s.startswith("broken"):
-                fail(f"{tag}: {os.path.basename(p)} {s}")
 
 
 class MapBuildCase(Case):
@@ -287,7 +292,7 @@ class SimCase(Case):
                  f"{r.stderr[-300:]}")
 
 
-class VioCase(Case):
+class VioCase(FileOutputsCase):
     name = "vio"
 
     def setup(self):
@@ -312,15 +317,6 @@ class VioCase(Case):
                 with open(p, "wb") as f:
                     f.write(self.old_content[p])
                 self.old[p] = self.old_content[p]
-
-    def cmd(self):
-        return self.args
-
-    def check(self, tag):
-        for p, v in self.validators.items():
-            s = file_state(p, self.old.get(p), v)
-            if s.startswith("broken"):
-                fail(f"{tag}: {os.path.basename(p)} {s}")
 
 
 class MissionCase(Case):
