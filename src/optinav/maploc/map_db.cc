@@ -376,7 +376,11 @@ MapDatabase BuildMapDatabase(const std::string& ortho_path, const MapBuildOption
                              const std::string& out_path, const MapShard& shard) {
   if (const std::string msg = shard.Check(); !msg.empty()) throw Error(msg, {.field = "--shard"});
   MapDatabase m = PlanMapDatabase(ortho_path, o);
-  const auto [first_tile, last_tile] = ShardTileRange(static_cast<int>(m.tiles.size()), shard);
+  // Plain variables, not a structured binding: the workers' lambda uses them (clang 14 cannot
+  // capture structured bindings).
+  const std::pair<int, int> tile_range = ShardTileRange(static_cast<int>(m.tiles.size()), shard);
+  const int first_tile = tile_range.first;
+  const int last_tile = tile_range.second;
   const double level_scale = m.map_gsd_m / m.feature_gsd_m;  // <= 1
   const int tile_img = std::max(16, static_cast<int>(std::lround(m.tile_px * level_scale)));
   const int n_threads =
