@@ -1,5 +1,6 @@
 #include "optinav/io/euroc_dataset.h"
 
+#include <cmath>
 #include <filesystem>
 
 #include <fmt/format.h>
@@ -44,11 +45,15 @@ CameraCalibration ReadCameraCalibration(const std::string& sensor_yaml) {
                 {.file = sensor_yaml, .field = "camera_model"});
   }
   const auto res = YamlGetNumbers(f, f.root, "resolution", 2);
+  // Checked before the conversion: a value beyond int is undefined behaviour (a fuzz finding).
+  for (const double side : res) {
+    if (!(side >= 1 && side <= 1e6 && side == std::floor(side))) {
+      throw Error("resolution must be two whole numbers in [1, 1000000]",
+                  {.file = sensor_yaml, .field = "resolution"});
+    }
+  }
   c.width = static_cast<int>(res[0]);
   c.height = static_cast<int>(res[1]);
-  if (c.width <= 0 || c.height <= 0) {
-    throw Error("resolution must be positive", {.file = sensor_yaml, .field = "resolution"});
-  }
   const auto k = YamlGetNumbers(f, f.root, "intrinsics", 4);
   c.fx = k[0];
   c.fy = k[1];
