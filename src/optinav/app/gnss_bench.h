@@ -19,8 +19,8 @@
 
 #include <Eigen/Core>
 
-#include "optinav/app/slurm_plan.h"
 #include "optinav/app/html_report.h"
+#include "optinav/app/slurm_plan.h"
 #include "optinav/geometry/trajectory.h"
 #include "optinav/vio/gnss_fusion.h"
 

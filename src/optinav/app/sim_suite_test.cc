@@ -38,7 +38,8 @@ TEST(RunWeatherSuite, RefusesANonEmptyFolderAndLeavesIt) {
   const auto count = [&](size_t, const sim::SuiteEntry&, const sim::SimulationSummary&) {
     ++calls;
   };
-  EXPECT_ERROR(RunWeatherSuite(Tiny(dir), count), {.file = dir.string(), .line = 0, .field = "--out"},
+  EXPECT_ERROR(RunWeatherSuite(Tiny(dir), count),
+               {.file = dir.string(), .line = 0, .field = "--out"},
                "output folder exists and is not empty (use --force to replace its contents)");
   EXPECT_EQ(calls, 0);
   EXPECT_EQ(testing::ReadFile(dir / "note.txt"), "keep me");

@@ -21,8 +21,8 @@
 #include <string>
 #include <vector>
 
-#include "optinav/app/slurm_plan.h"
 #include "optinav/app/html_report.h"
+#include "optinav/app/slurm_plan.h"
 #include "optinav/geometry/trajectory.h"
 #include "optinav/sim/weather.h"
 #include "optinav/sim/world.h"
