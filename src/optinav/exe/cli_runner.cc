@@ -117,4 +117,19 @@ int RunWithPlannedOptions(const std::string& kind, int argc, char** argv,
   return command(static_cast<int>(ptrs.size()), ptrs.data());
 }
 
+void PlanSweep(const std::string& kind, const std::string& plan, int task,
+               const std::string& out_dir, const std::vector<std::string>& given,
+               const std::vector<app::PlannedTask>& tasks, const app::SlurmResources& resources,
+               const std::string& slurm_args) {
+  if (plan != "slurm") throw UsageError("takes 'slurm'", "--plan");
+  if (task >= 0) throw UsageError("is not used with --plan", "--task");
+  const app::SlurmPlan written =
+      app::WriteSweepPlan(kind, out_dir, given, tasks, resources, slurm_args);
+  std::printf(
+      "%s: planned %zu task(s) -> %s/plan.json\n  submit: sbatch %s/submit.sbatch (the merge "
+      "follows when all succeed)\n  merge by hand: optinav %s --out %s --reuse\n",
+      kind.c_str(), written.tasks.size(), written.dir.c_str(), written.dir.c_str(), kind.c_str(),
+      written.dir.c_str());
+}
+
 }  // namespace optinav::cli

@@ -13,9 +13,11 @@
 
 #include <functional>
 #include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
+#include "optinav/app/slurm_plan.h"
 #include "optinav/util/error.h"
 
 namespace optinav::cli {
@@ -62,5 +64,12 @@ namespace optinav::cli {
 // is the command's name.
 int RunWithPlannedOptions(const std::string& kind, int argc, char** argv,
                           const std::function<int(int, char**)>& command);
+
+// `optinav KIND ... --plan PLAN` of a sweep (bench gnss|weather): checks --plan and --task, writes
+// the Slurm plan of `tasks` (app::WriteSweepPlan) and prints how to submit and merge it.
+void PlanSweep(const std::string& kind, const std::string& plan, int task,
+               const std::string& out_dir, const std::vector<std::string>& given,
+               const std::vector<app::PlannedTask>& tasks, const app::SlurmResources& resources,
+               const std::string& slurm_args);
 
 }  // namespace optinav::cli

@@ -105,16 +105,9 @@ int RunGnssBenchArgs(int argc, char** argv) {
   const auto run = [&] {
     ApplyFlags(flags, &options);
     if (!flags.plan.empty()) {
-      if (flags.plan != "slurm") throw cli::UsageError("takes 'slurm'", "--plan");
-      if (options.task >= 0) throw cli::UsageError("is not used with --plan", "--task");
-      const app::SlurmPlan plan =
-          app::WriteSweepPlan("bench gnss", options.out_dir, given, app::GnssBenchTasks(options),
-                              app::GnssBenchTaskResources(options), flags.slurm_args);
-      std::printf(
-          "bench gnss: planned %zu task(s) -> %s/plan.json\n  submit: sbatch %s/submit.sbatch "
-          "(the merge follows when all succeed)\n  merge by hand: optinav bench gnss --out %s "
-          "--reuse\n",
-          plan.tasks.size(), plan.dir.c_str(), plan.dir.c_str(), plan.dir.c_str());
+      cli::PlanSweep("bench gnss", flags.plan, options.task, options.out_dir, given,
+                     app::GnssBenchTasks(options), app::GnssBenchTaskResources(options),
+                     flags.slurm_args);
       return 0;
     }
     if (options.reuse && options.task < 0)

@@ -69,16 +69,9 @@ int RunWeatherBenchArgs(int argc, char** argv) {
   const auto run = [&] {
     ApplyFlags(flags, &options);
     if (!flags.plan.empty()) {
-      if (flags.plan != "slurm") throw cli::UsageError("takes 'slurm'", "--plan");
-      if (options.task >= 0) throw cli::UsageError("is not used with --plan", "--task");
-      const app::SlurmPlan plan = app::WriteSweepPlan(
-          "bench weather", options.out_dir, given, app::WeatherBenchTasks(options),
-          app::WeatherBenchTaskResources(options), flags.slurm_args);
-      std::printf(
-          "bench weather: planned %zu task(s) -> %s/plan.json\n  submit: sbatch %s/submit.sbatch "
-          "(the merge follows when all succeed)\n  merge by hand: optinav bench weather --out %s "
-          "--reuse\n",
-          plan.tasks.size(), plan.dir.c_str(), plan.dir.c_str(), plan.dir.c_str());
+      cli::PlanSweep("bench weather", flags.plan, options.task, options.out_dir, given,
+                     app::WeatherBenchTasks(options), app::WeatherBenchTaskResources(options),
+                     flags.slurm_args);
       return 0;
     }
     if (options.reuse && options.task < 0)
