@@ -1,4 +1,5 @@
-// EuRoC sensor.yaml files: camera (with the camera model built from it), IMU and GNSS readers
+// EuRoC sensor.yaml files: camera (with the camera model built from it), IMU, GNSS and barometer
+// readers
 // all read the same bytes.
 #include "fuzz/fuzz_target.h"
 #include "optinav/io/euroc_dataset.h"
@@ -24,6 +25,10 @@ OPTINAV_FUZZ_TARGET(sensor_yaml) {
   }
   try {
     io::ReadGnssSensorYaml(path);
+  } catch (const Error&) {
+  }
+  try {
+    io::ReadBaroCalibration(path);
   } catch (const Error&) {
   }
   return 0;

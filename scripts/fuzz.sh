@@ -10,7 +10,8 @@
 # harness): copy the input to fuzz/regressions/<name>/ and fix the parser. Per harness, the
 # summary gives executions, coverage (cov: edges, ft: features) and corpus size, from
 # -print_final_stats=1; logs in build-fuzz/logs/. OPTINAV_FUZZ_RUNS=N also stops a harness after
-# N executions (the issue's "10^6 executions or 1 hour": OPTINAV_FUZZ_RUNS=1000000 fuzz.sh 3600).
+# N executions (the issue's "10^6 executions or 1 hour": OPTINAV_FUZZ_RUNS=1000000 fuzz.sh 3600);
+# OPTINAV_FUZZ_JOBS=N runs N harnesses at a time.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 SECONDS_EACH="${1:-60}"
@@ -90,13 +91,13 @@ dict() {
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=0:allocator_may_return_null=1"
 export LSAN_OPTIONS="suppressions=${ROOT}/scripts/sanitizers/lsan.supp:print_suppressions=0"
 export UBSAN_OPTIONS="suppressions=${ROOT}/scripts/sanitizers/ubsan.supp:print_stacktrace=1:halt_on_error=1"
-mkdir -p "${BUILD}/logs"
-failed=()
+mkdir -p "${BUILD}/logs" "${BUILD}/status"
 SUMMARY="${BUILD}/fuzz_summary.txt"
-printf '%-20s %12s %8s %8s %7s %s\n' harness execs exec/s cov ft corpus >"${SUMMARY}"
-for h in "${HARNESSES[@]}"; do
+# One harness: its log, its summary line (status/<h>.line) and its exit code (status/<h>.rc).
+run_one() {
+  local h="$1"
   mkdir -p "${BUILD}/work/${h}" "${BUILD}/crashes/${h}" "${SEEDS}/${h}" "${ROOT}/fuzz/regressions/${h}"
-  log="${BUILD}/logs/${h}.log"
+  local log="${BUILD}/logs/${h}.log"
   echo "fuzz.sh: ${h} for ${SECONDS_EACH} s"
   set +e
   # shellcheck disable=SC2046
@@ -105,8 +106,9 @@ for h in "${HARNESSES[@]}"; do
     -timeout=30 -rss_limit_mb=3072 -max_len="$(max_len "${h}")" $(dict "${h}") \
     -artifact_prefix="${BUILD}/crashes/${h}/" "${BUILD}/work/${h}" "${SEEDS}/${h}" \
     "${ROOT}/fuzz/corpus/${h}" "${ROOT}/fuzz/regressions/${h}" >"${log}" 2>&1
-  rc=$?
-  set -e
+  local rc=$?
+  # (Runs in a background subshell: the stats parsing below may find nothing after a crash.)
+  local execs speed last cov ft corp
   execs=$(grep 'stat::number_of_executed_units:' "${log}" | awk '{print $2}' | tail -1)
   speed=$(grep 'stat::average_exec_per_sec:' "${log}" | awk '{print $2}' | tail -1)
   last=$(grep -E '^#[0-9]+' "${log}" | tail -1)
@@ -114,12 +116,26 @@ for h in "${HARNESSES[@]}"; do
   ft=$(sed -n 's/.* ft: \([0-9]*\).*/\1/p' <<<"${last}")
   corp=$(sed -n 's/.* corp: \([0-9]*\/[0-9a-zA-Z]*\).*/\1/p' <<<"${last}")
   printf '%-20s %12s %8s %8s %7s %s\n' "${h}" "${execs:-?}" "${speed:-?}" "${cov:-?}" \
-    "${ft:-?}" "${corp:-?}" | tee -a "${SUMMARY}"
+    "${ft:-?}" "${corp:-?}" | tee "${BUILD}/status/${h}.line"
+  echo "${rc}" >"${BUILD}/status/${h}.rc"
   if [[ ${rc} -ne 0 ]]; then
     echo "fuzz.sh: ${h} FAILED (exit ${rc}); input in ${BUILD}/crashes/${h}/, log ${log}:" >&2
     grep -a -E 'ERROR: |SUMMARY: |terminate called|what\(\)' "${log}" | head -5 >&2 || true
-    failed+=("${h}")
   fi
+}
+# OPTINAV_FUZZ_JOBS=N runs N harnesses at a time (default 1: one after the other).
+JOBS="${OPTINAV_FUZZ_JOBS:-1}"
+for h in "${HARNESSES[@]}"; do rm -f "${BUILD}/status/${h}.line" "${BUILD}/status/${h}.rc"; done
+for h in "${HARNESSES[@]}"; do
+  while [[ $(jobs -rp | wc -l) -ge ${JOBS} ]]; do wait -n || true; done
+  run_one "${h}" &
+done
+wait
+failed=()
+printf '%-20s %12s %8s %8s %7s %s\n' harness execs exec/s cov ft corpus >"${SUMMARY}"
+for h in "${HARNESSES[@]}"; do
+  cat "${BUILD}/status/${h}.line" >>"${SUMMARY}" 2>/dev/null || echo "${h} (no result)" >>"${SUMMARY}"
+  if [[ "$(cat "${BUILD}/status/${h}.rc" 2>/dev/null || echo 1)" -ne 0 ]]; then failed+=("${h}"); fi
 done
 cat "${SUMMARY}"
 echo "fuzz.sh: ${#HARNESSES[@]} harnesses, ${SECONDS_EACH} s each"

@@ -162,7 +162,9 @@ def main():
         print("report_browser_test: SKIPPED: %s is not installed (scripts/setup.sh installs the "
               "Debian package chromium)" % CHROMIUM)
         return 77
-    naip = os.path.join(a.data, "geo", "naip")
+    # $OPTINAV_SHARED_DATA overrides the configured default, as for every other test.
+    data = os.environ.get("OPTINAV_SHARED_DATA") or a.data
+    naip = os.path.join(data, "geo", "naip")
     if not os.path.isdir(naip):
         fail("no NAIP data in %s (set OPTINAV_SHARED_DATA)" % naip)
     work = a.work or tempfile.mkdtemp(prefix="optinav_report_")

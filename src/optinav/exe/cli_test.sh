@@ -209,6 +209,21 @@ grep -q 'img_front_left_0_[0-9]*.png;img_front_right_0_[0-9]*.png' "$WORK/sim2/a
 [[ -s "$WORK/sim2/camera_info.csv" && -d "$WORK/sim2/images" ]] || fail "airsim layout"
 expect_ok "sim ortho world" "$BIN" sim --world "ortho:$NAIP/naip_20170827.tif" --route drone \
   --altitude 120 --duration 0.3 --scale 0.1 --out "$WORK/sim3"
+# Drone routes get the nadir camera (cam2, 640x480 by default) and the barometer; car routes not.
+[[ $(wc -l < "$WORK/sim1/mav0/cam2/data.csv") -eq 7 ]] || fail "sim nadir frames: 6 at 5 Hz in 1 s"
+grep -q "resolution: \[640, 480\]" "$WORK/sim1/mav0/cam2/sensor.yaml" || fail "sim nadir size"
+[[ $(wc -l < "$WORK/sim1/mav0/baro0/data.csv") -eq 22 ]] || fail "sim baro: 21 samples at 20 Hz"
+[[ ! -e "$WORK/sim2/cam2" && ! -e "$WORK/sim2/baro0" ]] || fail "car route wrote nadir/baro"
+expect_ok "sim nadir options" "$BIN" sim --world "ortho:$NAIP/naip_20170827.tif" --route drone \
+  --altitude 120 --duration 0.4 --scale 0.1 --nadir-camera 64x48 --nadir-rate 10 --baro off \
+  --out "$WORK/sim4"
+[[ $(wc -l < "$WORK/sim4/mav0/cam2/data.csv") -eq 6 ]] || fail "sim nadir 10 Hz: 5 frames in 0.4 s"
+[[ ! -e "$WORK/sim4/mav0/baro0" ]] || fail "sim --baro off wrote baro0"
+expect_error "sim bad nadir size" "--nadir-camera" "$BIN" sim --nadir-camera 640by480 \
+  --out "$WORK/simx"
+expect_error "sim bad nadir fov" "--nadir-hfov" "$BIN" sim --route drone --nadir-hfov 200 \
+  --out "$WORK/simx"
+expect_error "sim bad baro" "--baro" "$BIN" sim --baro maybe --out "$WORK/simx"
 expect_error "sim unknown world" "unknown world 'mars'" "$BIN" sim --world mars --out "$WORK/simx"
 expect_error "sim unknown weather" "unknown weather 'hail'" "$BIN" sim --weather hail:20 \
   --out "$WORK/simx"

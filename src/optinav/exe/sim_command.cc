@@ -24,7 +24,26 @@ struct SimFlags {
   double gnss_rate = 5, gnss_sigma = 1;
   std::string gnss_outliers;
   std::vector<std::string> gnss_outages;
+  std::string nadir_camera = "auto", baro = "auto";
+  double nadir_hfov = 90, nadir_rate = 5;
 };
+
+// "auto" (on for drone routes), "off", or WxH.
+void ParseNadirCamera(const std::string& spec, bool drone, sim::NadirCameraOptions* o) {
+  if (spec == "auto" || spec == "off") {
+    o->enabled = spec == "auto" && drone;
+    return;
+  }
+  int w = 0, h = 0;
+  char x = 0, extra = 0;
+  if (std::sscanf(spec.c_str(), "%d%c%d%c", &w, &x, &h, &extra) != 3 || x != 'x') {
+    throw cli::UsageError(fmt::format("'{}' is not WxH (e.g. 640x480), auto or off", spec),
+                          "--nadir-camera");
+  }
+  o->enabled = true;
+  o->width = w;
+  o->height = h;
+}
 
 // The options the flags give; throws UsageError (exit 2) naming the flag on any invalid value.
 sim::SimulationOptions ToOptions(const SimFlags& f) {
@@ -57,6 +76,14 @@ sim::SimulationOptions ToOptions(const SimFlags& f) {
   o.seed = f.seed;
   o.gnss.rate_hz = f.gnss_rate;
   o.gnss.sigma_m = f.gnss_sigma;
+  const bool drone = f.route != "car";
+  ParseNadirCamera(f.nadir_camera, drone, &o.nadir);
+  o.nadir.hfov_deg = f.nadir_hfov;
+  o.nadir.rate_hz = f.nadir_rate;
+  if (f.baro != "auto" && f.baro != "on" && f.baro != "off") {
+    throw cli::UsageError(fmt::format("'{}' is not auto, on or off", f.baro), "--baro");
+  }
+  o.baro.enabled = f.baro == "on" || (f.baro == "auto" && drone);
   cli::ThrowIfInvalid(o.Check(), "");
   return o;
 }
@@ -94,6 +121,15 @@ void AddSimFlags(CLI::App& app, SimFlags& f) {
   app.add_option("--gnss-outliers", f.gnss_outliers, "FRACTION:MAGNITUDE_M, e.g. 0.05:20");
   app.add_option("--gnss-outage", f.gnss_outages,
                  "START_S:DURATION_S, no GNSS in that window (repeatable)");
+  app.add_option("--nadir-camera", f.nadir_camera,
+                 "nadir mapping camera mav0/cam2: WxH, off, or auto (640x480 on drone routes)")
+      ->capture_default_str();
+  app.add_option("--nadir-hfov", f.nadir_hfov, "nadir camera horizontal field of view (deg)")
+      ->capture_default_str();
+  app.add_option("--nadir-rate", f.nadir_rate, "nadir camera frame rate (Hz)")
+      ->capture_default_str();
+  app.add_option("--baro", f.baro, "barometer mav0/baro0: on, off, or auto (on for drone routes)")
+      ->capture_default_str();
 }
 
 int RunSuite(const SimFlags& f) {
@@ -114,9 +150,13 @@ int RunOne(const SimFlags& f) {
   const sim::SimulationSummary s = app::SimulateWithProgress(o, "sim");
   std::printf(
       "optinav sim: %s world (%zu triangles), %s route %.0f m in %.1f s, weather %s: %zu "
-      "stereo frames %dx%d, %zu IMU, %zu GNSS samples -> %s (%s) in %.1f s\n",
+      "stereo frames %dx%d, %zu IMU, %zu GNSS samples%s -> %s (%s) in %.1f s\n",
       f.world.c_str(), s.world_triangles, f.route.c_str(), s.path_length_m, s.duration_s,
       o.weather.ToString().c_str(), s.frames, s.width, s.height, s.imu_samples, s.gnss_samples,
+      (o.nadir.enabled || o.baro.enabled)
+          ? fmt::format(", {} nadir frames, {} barometer samples", s.nadir_frames, s.baro_samples)
+                .c_str()
+          : "",
       o.out_dir.c_str(), f.format.c_str(), s.wall_s);
   return 0;
 }

@@ -167,6 +167,51 @@ std::vector<ImuSample> ReadImuCsv(const std::string& data_csv) {
   return out;
 }
 
+std::vector<BaroSample> ReadBaroCsv(const std::string& data_csv) {
+  const std::string text = ReadFileToString(data_csv);
+  LineCursor cursor(text);
+  std::string_view line;
+  std::vector<std::string_view> f;
+  std::vector<BaroSample> out;
+  while (cursor.Next(&line)) {
+    if (IsCommentOrBlank(line)) continue;
+    ErrorContext ctx{.file = data_csv, .line = cursor.line_number()};
+    SplitFields(line, ',', &f);
+    if (f.size() != 2) {
+      throw Error(fmt::format("expected 'timestamp [ns], altitude [m]', found {} fields", f.size()),
+                  ctx);
+    }
+    ctx.field = "timestamp";
+    const int64_t t = ParseInt64(f[0], ctx);
+    if (!out.empty()) CheckIncreasing(out.back().t_ns, t, ctx);
+    ctx.field = "altitude";
+    out.push_back({t, ParseFiniteDouble(f[1], ctx)});
+  }
+  return out;
+}
+
+BaroCalibration ReadBaroCalibration(const std::string& sensor_yaml) {
+  const YamlFile f = LoadYamlFile(sensor_yaml);
+  BaroCalibration c;
+  c.rate_hz = YamlGet<double>(f, f.root, "rate_hz");
+  c.noise_sigma_m = YamlGet<double>(f, f.root, "noise_sigma_m");
+  c.bias_sigma_m = YamlGet<double>(f, f.root, "bias_sigma_m");
+  c.bias_random_walk = YamlGet<double>(f, f.root, "bias_random_walk");
+  for (const auto& [name, value] :
+       {std::pair{"rate_hz", c.rate_hz}, {"noise_sigma_m", c.noise_sigma_m}}) {
+    if (!(value > 0 && std::isfinite(value))) {
+      throw Error("must be positive", {.file = sensor_yaml, .field = name});
+    }
+  }
+  for (const auto& [name, value] :
+       {std::pair{"bias_sigma_m", c.bias_sigma_m}, {"bias_random_walk", c.bias_random_walk}}) {
+    if (!(value >= 0 && std::isfinite(value))) {
+      throw Error("must be zero or positive", {.file = sensor_yaml, .field = name});
+    }
+  }
+  return c;
+}
+
 EurocDataset OpenEurocDataset(const std::string& dir, const EurocOpenOptions& options) {
   fs::path root(dir);
   if (!fs::is_directory(root)) throw Error("dataset folder not found", {.file = dir});
@@ -174,7 +219,7 @@ EurocDataset OpenEurocDataset(const std::string& dir, const EurocOpenOptions& op
   if (fs::is_directory(root / "mav0")) root /= "mav0";
   EurocDataset ds;
   ds.mav0_dir = root.string();
-  for (const char* cam : {"cam0", "cam1"}) {
+  for (const char* cam : {"cam0", "cam1", "cam2"}) {
     const fs::path cdir = root / cam;
     if (!fs::is_directory(cdir)) continue;
     CameraStream stream;
@@ -184,12 +229,20 @@ EurocDataset OpenEurocDataset(const std::string& dir, const EurocOpenOptions& op
     if (stream.images.empty()) {
       throw Error("camera lists no images", {.file = (cdir / "data.csv").string()});
     }
-    (std::string(cam) == "cam0" ? ds.cam0 : ds.cam1) = std::move(stream);
+    const std::string name(cam);
+    (name == "cam0" ? ds.cam0 : name == "cam1" ? ds.cam1 : ds.cam2) = std::move(stream);
   }
   if (fs::is_directory(root / "imu0")) {
     ds.imu_calibration = ReadImuCalibration((root / "imu0" / "sensor.yaml").string());
     ds.imu_csv = (root / "imu0" / "data.csv").string();
     if (!fs::is_regular_file(ds.imu_csv)) throw Error("missing IMU data", {.file = ds.imu_csv});
+  }
+  if (fs::is_directory(root / "baro0")) {
+    ds.baro_calibration = ReadBaroCalibration((root / "baro0" / "sensor.yaml").string());
+    ds.baro_csv = (root / "baro0" / "data.csv").string();
+    if (!fs::is_regular_file(ds.baro_csv)) {
+      throw Error("missing barometer data", {.file = ds.baro_csv});
+    }
   }
   if (fs::is_regular_file(root / "gnss0" / "data.csv")) {
     ds.gnss_csv = (root / "gnss0" / "data.csv").string();

@@ -1,6 +1,8 @@
 // The EuRoC/ASL dataset layout:
 //   <seq>/mav0/{cam0,cam1}/{sensor.yaml,data.csv,data/*.png}
+//   <seq>/mav0/cam2/{sensor.yaml,data.csv,data/*.png} (optional: a nadir mapping camera)
 //   <seq>/mav0/imu0/{sensor.yaml,data.csv}
+//   <seq>/mav0/baro0/{sensor.yaml,data.csv} (optional: barometric altitude)
 //   <seq>/mav0/gnss0/{sensor.yaml,data.csv,llh.csv} (optional; gnss_io.h reads them)
 //   <seq>/mav0/state_groundtruth_estimate0/data.csv (optional)
 // sensor.yaml T_BS is body_from_sensor (it maps sensor-frame points into the body/IMU frame).
@@ -49,6 +51,21 @@ struct ImuSample {
   Eigen::Vector3d accel_m_s2 = Eigen::Vector3d::Zero();
 };
 
+// A barometer's altitude: the height of the body above the world frame's origin (its z, metres)
+// as a barometer referenced at the origin reports it, with the sensor's noise and bias.
+struct BaroSample {
+  int64_t t_ns = 0;
+  double altitude_m = 0;
+};
+
+// baro0/sensor.yaml: the noise model (white noise and a bias that drifts as a random walk).
+struct BaroCalibration {
+  double rate_hz = 0;
+  double noise_sigma_m = 0;         // white noise per sample (m)
+  double bias_sigma_m = 0;          // initial bias (m, 1 sigma)
+  double bias_random_walk = 0;      // m / sqrt(s)
+};
+
 struct CameraStream {
   CameraCalibration calibration;
   std::vector<ImageEntry> images;
@@ -57,8 +74,11 @@ struct CameraStream {
 struct EurocDataset {
   std::string mav0_dir;
   std::optional<CameraStream> cam0, cam1;
+  std::optional<CameraStream> cam2;  // the nadir mapping camera, when there is one
   std::optional<ImuCalibration> imu_calibration;
   std::string imu_csv;          // empty when there is no imu0
+  std::optional<BaroCalibration> baro_calibration;
+  std::string baro_csv;         // empty when there is no baro0; read it with ReadBaroCsv
   std::string gnss_csv;         // empty when there is no gnss0; read it with ReadGnssFile
   std::string groundtruth_csv;  // empty when there is no ground truth
 };
@@ -90,5 +110,9 @@ std::vector<ImageEntry> ReadImageList(const std::string& data_csv, const std::st
                                       bool check_exist, bool drop_missing = false);
 // imu0 data.csv: "timestamp [ns], wx, wy, wz [rad/s], ax, ay, az [m/s^2]".
 std::vector<ImuSample> ReadImuCsv(const std::string& data_csv);
+// baro0 data.csv: "timestamp [ns], altitude [m]", increasing timestamps, finite values.
+std::vector<BaroSample> ReadBaroCsv(const std::string& data_csv);
+// baro0 sensor.yaml: rate_hz > 0, noise_sigma_m > 0, bias_sigma_m >= 0, bias_random_walk >= 0.
+BaroCalibration ReadBaroCalibration(const std::string& sensor_yaml);
 
 }  // namespace optinav::io

@@ -79,6 +79,24 @@ void WriteImuCsv(const std::string& path, const std::vector<ImuSample>& samples)
   WriteFileAtomically(path, s);
 }
 
+void WriteBaroCsv(const std::string& path, const std::vector<BaroSample>& samples) {
+  std::string s = "#timestamp [ns],altitude [m]\n";
+  for (const BaroSample& m : samples) s += fmt::format("{},{:.6f}\n", m.t_ns, m.altitude_m);
+  WriteFileAtomically(path, s);
+}
+
+void WriteBaroSensorYaml(const std::string& path, const BaroCalibration& c,
+                         const std::string& comment) {
+  WriteFileAtomically(
+      path, fmt::format("%YAML:1.0\n# written by optinav sim\nsensor_type: barometer\n"
+                        "comment: {}\n\n# altitude = z of the body in the world frame + bias + "
+                        "noise\nrate_hz: {:.6f}\n"
+                        "noise_sigma_m: {:.9g}     # [ m ] white noise per sample\n"
+                        "bias_sigma_m: {:.9g}      # [ m ] initial bias, 1 sigma\n"
+                        "bias_random_walk: {:.9g}  # [ m / sqrt(s) ]\n",
+                        comment, c.rate_hz, c.noise_sigma_m, c.bias_sigma_m, c.bias_random_walk));
+}
+
 void WriteGroundTruthCsv(const std::string& path, const std::vector<GroundTruthState>& states) {
   std::string s =
       "#timestamp, p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], "

@@ -39,6 +39,12 @@ void WriteImuSensorYaml(const std::string& path, const ImuCalibration& calibrati
 // imu0/data.csv (ReadImuCsv): "timestamp [ns], w_RS_S_x..z [rad s^-1], a_RS_S_x..z [m s^-2]".
 void WriteImuCsv(const std::string& path, const std::vector<ImuSample>& samples);
 
+// baro0/data.csv (ReadBaroCsv): "timestamp [ns], altitude [m]", and baro0/sensor.yaml
+// (ReadBaroCalibration).
+void WriteBaroCsv(const std::string& path, const std::vector<BaroSample>& samples);
+void WriteBaroSensorYaml(const std::string& path, const BaroCalibration& calibration,
+                         const std::string& comment);
+
 // One row of state_groundtruth_estimate0/data.csv.
 struct GroundTruthState {
   int64_t t_ns = 0;

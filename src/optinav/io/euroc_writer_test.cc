@@ -112,6 +112,44 @@ TEST_F(EurocWriterTest, ImuCsvRoundTrips) {
   }
 }
 
+TEST_F(EurocWriterTest, BarometerRoundTripsAndBadFilesNameTheLine) {
+  std::vector<BaroSample> samples;
+  for (int k = 0; k < 4; ++k) samples.push_back({kT0 + k * 50'000'000, 412.25 - 0.123456 * k});
+  const std::string p = Path("baro0/data.csv");
+  WriteBaroCsv(p, samples);
+  const std::vector<BaroSample> back = ReadBaroCsv(p);
+  ASSERT_EQ(back.size(), samples.size());
+  for (size_t k = 0; k < samples.size(); ++k) {
+    EXPECT_EQ(back[k].t_ns, samples[k].t_ns);
+    EXPECT_NEAR(back[k].altitude_m, samples[k].altitude_m, 1e-6);
+  }
+  const BaroCalibration c{
+      .rate_hz = 20, .noise_sigma_m = 0.3, .bias_sigma_m = 2, .bias_random_walk = 0.02};
+  WriteBaroSensorYaml(Path("baro0/sensor.yaml"), c, "test");
+  const BaroCalibration cb = ReadBaroCalibration(Path("baro0/sensor.yaml"));
+  EXPECT_EQ(cb.rate_hz, 20);
+  EXPECT_EQ(cb.noise_sigma_m, 0.3);
+  EXPECT_EQ(cb.bias_sigma_m, 2);
+  EXPECT_EQ(cb.bias_random_walk, 0.02);
+
+  const auto expect_error = [&](const std::string& text, const std::string& what) {
+    WriteFileAtomically(Path("bad.csv"), text);
+    try {
+      ReadBaroCsv(Path("bad.csv"));
+      ADD_FAILURE() << "accepted: " << text;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(what), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("bad.csv"), std::string::npos) << e.what();
+    }
+  };
+  expect_error("#t,alt\n100,5.0\n200,nan\n", ":3: field 'altitude'");
+  expect_error("100,5.0\n100,6.0\n", ":2: field 'timestamp'");  // not increasing
+  expect_error("100,5.0,1\n", "found 3 fields");
+  WriteFileAtomically(Path("bad.yaml"),
+                      "rate_hz: 20\nnoise_sigma_m: -1\nbias_sigma_m: 0\nbias_random_walk: 0\n");
+  EXPECT_THROW(ReadBaroCalibration(Path("bad.yaml")), Error);
+}
+
 TEST_F(EurocWriterTest, GroundTruthRoundTripsWithQuaternionWxyz) {
   std::vector<GroundTruthState> states;
   for (int k = 0; k < 3; ++k) {

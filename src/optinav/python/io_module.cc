@@ -109,6 +109,23 @@ py::dict Gnss(const std::string& csv) {
   return d;
 }
 
+py::dict Baro(const io::EurocDataset& ds) {
+  const std::vector<io::BaroSample> samples = io::ReadBaroCsv(ds.baro_csv);
+  const io::BaroCalibration& c = *ds.baro_calibration;
+  py::dict calibration;
+  calibration["rate_hz"] = c.rate_hz;
+  calibration["noise_sigma_m"] = c.noise_sigma_m;
+  calibration["bias_sigma_m"] = c.bias_sigma_m;
+  calibration["bias_random_walk"] = c.bias_random_walk;
+  py::dict d;
+  d["t_ns"] = Times(samples.size(), [&](size_t i) { return samples[i].t_ns; });
+  d["altitude_m"] = Rows(samples.size(), 1, [&](size_t i, double* out) {
+                      out[0] = samples[i].altitude_m;
+                    }).attr("reshape")(samples.size());
+  d["calibration"] = calibration;
+  return d;
+}
+
 }  // namespace
 
 void DefineIo(py::module_& m) {
@@ -123,7 +140,9 @@ void DefineIo(py::module_& m) {
         d["mav0"] = ToStr(ds.mav0_dir);
         d["cam0"] = ds.cam0 ? py::object(Camera(*ds.cam0)) : py::object(py::none());
         d["cam1"] = ds.cam1 ? py::object(Camera(*ds.cam1)) : py::object(py::none());
+        d["cam2"] = ds.cam2 ? py::object(Camera(*ds.cam2)) : py::object(py::none());
         d["imu"] = ds.imu_csv.empty() ? py::object(py::none()) : py::object(Imu(ds));
+        d["baro"] = ds.baro_csv.empty() ? py::object(py::none()) : py::object(Baro(ds));
         d["groundtruth"] = ds.groundtruth_csv.empty() ? py::object(py::none())
                                                       : py::object(GroundTruth(ds.groundtruth_csv));
         d["gnss"] = ds.gnss_csv.empty() ? py::object(py::none()) : py::object(Gnss(ds.gnss_csv));
@@ -132,13 +151,16 @@ void DefineIo(py::module_& m) {
       py::arg("path"), py::kw_only(), py::arg("skip_missing_images") = true,
       R"(Reads a EuRoC/ASL dataset folder (the sequence folder holding mav0/, or mav0/ itself),
 as `optinav vio` reads it. Times are int64 nanoseconds. Returns a dict:
-  cam0, cam1: {t_ns (K,), images (K paths), calibration {camera_model, resolution (w, h),
-    intrinsics (fx, fy, cx, cy), distortion_model, distortion, rate_hz, body_from_cam (4x4)}}
+  cam0, cam1, cam2 (the nadir camera): {t_ns (K,), images (K paths), calibration {camera_model,
+    resolution (w, h), intrinsics (fx, fy, cx, cy), distortion_model, distortion, rate_hz,
+    body_from_cam (4x4)}}
   imu: {t_ns (M,), gyro_rad_s (M, 3), accel_m_s2 (M, 3), calibration {rate_hz, noise densities
     and random walks, body_from_imu (4x4)}}
   groundtruth: {t_ns (N,), position (N, 3), quaternion_wxyz (N, 4)}: the pose world_from_body
     (velocity and biases are not read); optinav.eval.ape/rpe take this dict as a trajectory
   gnss: {kind enu|lat_lon_height, t_ns, values (G, 3), sigma_m (G,; NaN when not given)}
+  baro: {t_ns (B,), altitude_m (B,), calibration {rate_hz, noise_sigma_m, bias_sigma_m,
+    bias_random_walk}}
 A part the folder does not have is None. skip_missing_images drops listed frames whose file is
 missing, with a warning (as `optinav vio` does; real clips list frames they do not ship); False
 makes them an error. Raises optinav.Error naming the file, line and field of a malformed file.)");

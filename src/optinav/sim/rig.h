@@ -64,4 +64,23 @@ inline SensorRig DroneRig() {
   return r;
 }
 
+// The nadir mapping camera (`mav0/cam2`), mounted as the attitude convention of docs/FORMATS.md
+// has it: looking straight down the body's -z, the image top towards the nose (body x), the image
+// right towards the right wing (body -y). Centred on the IMU.
+inline Rigid3d NadirCameraMount() {
+  Eigen::Matrix3d r;  // columns: camera x (right), y (down in the image), z (optical axis)
+  r << 0, -1, 0, -1, 0, 0, 0, 0, -1;
+  return Rigid3d(Eigen::Quaterniond(r).normalized(), Eigen::Vector3d::Zero());
+}
+
+struct NadirCameraOptions {
+  bool enabled = false;  // `optinav sim` turns it on for drone routes
+  int width = 640, height = 480;
+  double hfov_deg = 90;
+  double rate_hz = 5;
+  camera::PinholeCamera Camera() const {
+    return camera::PinholeCamera::FromHorizontalFov(width, height, hfov_deg * M_PI / 180);
+  }
+};
+
 }  // namespace optinav::sim

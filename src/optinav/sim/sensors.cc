@@ -88,6 +88,37 @@ std::vector<ImuMeasurement> SimulateImu(const BodyTrajectory& trajectory, const 
   return out;
 }
 
+std::string BaroOptions::Check() const {
+  if (!(rate_hz >= 0.1 && rate_hz <= 1000)) {
+    return fmt::format("barometer rate {} Hz not in [0.1, 1000]", rate_hz);
+  }
+  for (const auto& [name, v] : {std::pair{"noise_sigma_m", noise_sigma_m},
+                                {"initial_bias_sigma_m", initial_bias_sigma_m},
+                                {"bias_random_walk", bias_random_walk}}) {
+    if (!(v >= 0) || !std::isfinite(v)) return fmt::format("barometer {} = {} must be >= 0", name, v);
+  }
+  if (!(noise_sigma_m > 0)) return "barometer noise_sigma_m must be > 0";
+  return "";
+}
+
+std::vector<BaroMeasurement> SimulateBaro(const BodyTrajectory& trajectory,
+                                          const BaroOptions& options, uint64_t seed) {
+  std::mt19937_64 rng(seed ^ 0x5b4a3c2d1e0f9687ull);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const double dt = 1.0 / options.rate_hz;
+  double bias = options.initial_bias_sigma_m * normal(rng);
+  const double walk = options.bias_random_walk * std::sqrt(dt);
+  std::vector<BaroMeasurement> out;
+  for (int64_t k = 0;; ++k) {
+    const int64_t t = trajectory.start_ns() + static_cast<int64_t>(std::llround(k * dt * 1e9));
+    if (t > trajectory.end_ns()) break;
+    const double z = trajectory.At(t).world_from_body.translation.z();
+    out.push_back({t, z + bias + options.noise_sigma_m * normal(rng), bias});
+    bias += walk * normal(rng);
+  }
+  return out;
+}
+
 std::string GnssOptions::Check() const {
   if (!(rate_hz >= 0.1 && rate_hz <= 100)) {
     return fmt::format("--gnss-rate {} Hz not in [0.1, 100]", rate_hz);

@@ -50,6 +50,28 @@ struct ImuMeasurement {
 std::vector<ImuMeasurement> SimulateImu(const BodyTrajectory& trajectory, const ImuOptions& options,
                                         uint64_t seed);
 
+// Barometer: altitude = z of the body in the world frame + bias + white noise, the bias drifting
+// as a random walk (sigma per step = random_walk * sqrt(dt)) from an initial Gaussian draw.
+// Defaults: a MEMS barometer (MS5611 class) after its usual filtering.
+struct BaroOptions {
+  bool enabled = false;            // `optinav sim` turns it on for drone routes
+  double rate_hz = 20.0;
+  double noise_sigma_m = 0.3;      // white noise per sample
+  double initial_bias_sigma_m = 2.0;
+  double bias_random_walk = 0.02;  // m / sqrt(s): about 0.5 m of drift in 10 minutes
+  std::string Check() const;
+};
+
+struct BaroMeasurement {
+  int64_t t_ns = 0;
+  double altitude_m = 0;
+  double bias_m = 0;  // the true bias at this sample
+};
+
+// Samples at start + k / rate for every k with t <= end.
+std::vector<BaroMeasurement> SimulateBaro(const BodyTrajectory& trajectory,
+                                          const BaroOptions& options, uint64_t seed);
+
 struct GnssOutage {
   double start_s = 0, duration_s = 0;  // seconds after the start of the trajectory
 };

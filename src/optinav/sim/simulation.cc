@@ -163,6 +163,21 @@ std::string SimulationOptions::Check() const {
   if (png_compression < 0 || png_compression > 9) return "png compression not in [0, 9]";
   if (const std::string m = imu.Check(); !m.empty()) return m;
   if (const std::string m = gnss.Check(); !m.empty()) return m;
+  if (baro.enabled) {
+    if (const std::string m = baro.Check(); !m.empty()) return m;
+  }
+  if (nadir.enabled) {
+    if (nadir.width < 16 || nadir.height < 16 || nadir.width > 8192 || nadir.height > 8192) {
+      return fmt::format("--nadir-camera {}x{} not within 16x16 to 8192x8192", nadir.width,
+                         nadir.height);
+    }
+    if (!(nadir.hfov_deg >= 5 && nadir.hfov_deg <= 150)) {
+      return fmt::format("--nadir-hfov {} deg not in [5, 150]", nadir.hfov_deg);
+    }
+    if (!(nadir.rate_hz >= 0.1 && nadir.rate_hz <= 100)) {
+      return fmt::format("--nadir-rate {} Hz not in [0.1, 100]", nadir.rate_hz);
+    }
+  }
   return "";
 }
 
@@ -196,6 +211,16 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
   const int64_t period_ns = std::llround(1e9 / rig.camera_rate_hz);
   std::vector<int64_t> frame_times;
   for (int64_t t = kStartNs; t <= end_ns; t += period_ns) frame_times.push_back(t);
+  std::vector<int64_t> nadir_times;
+  if (options.nadir.enabled) {
+    const int64_t nadir_period_ns = std::llround(1e9 / options.nadir.rate_hz);
+    for (int64_t t = kStartNs; t <= end_ns; t += nadir_period_ns) nadir_times.push_back(t);
+  }
+  std::vector<BaroMeasurement> baro;
+  if (options.baro.enabled) {
+    baro = SimulateBaro(traj, options.baro, options.seed);
+    std::erase_if(baro, [&](const BaroMeasurement& m) { return m.t_ns > end_ns; });
+  }
 
   io::PrepareOutputDir(options.out_dir, options.force, io::OnForce::kClear, "--out", kMarker);
   io::MarkInProgress(options.out_dir, "optinav sim");
@@ -206,6 +231,10 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
   const fs::path right_dir = euroc ? mav0 / "cam1" / "data" : out / "images";
   fs::create_directories(left_dir);
   fs::create_directories(right_dir);
+  // The nadir camera and the barometer: EuRoC layout in both formats.
+  const fs::path extra_root = euroc ? mav0 : out;
+  const fs::path nadir_dir = extra_root / "cam2" / "data";
+  if (options.nadir.enabled) fs::create_directories(nadir_dir);
 
   // Writer threads encode and write the PNGs while the next frames render (PNG encoding costs
   // about as much as rendering; sim/internal/png_writer.h).
@@ -243,6 +272,20 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
   };
   const Renderer renderer(world);
   std::vector<io::ImageEntry> image_list;  // EuRoC: the same file names for cam0 and cam1
+  std::vector<io::ImageEntry> nadir_list;
+  size_t next_nadir = 0;
+  // Renders (and queues) the nadir frames up to time `until`; false when the writers stopped.
+  auto render_nadir_until = [&](int64_t until) {
+    for (; next_nadir < nadir_times.size() && nadir_times[next_nadir] <= until; ++next_nadir) {
+      const int64_t t = nadir_times[next_nadir];
+      cv::Mat img = RenderNadir(renderer, options.nadir, traj.At(t).world_from_body, t,
+                                options.weather, options.seed);
+      const std::string name = fmt::format("{}.png", t);
+      nadir_list.push_back({.t_ns = t, .path = name});
+      if (!queue.Push({(nadir_dir / name).string(), std::move(img)})) return false;
+    }
+    return true;
+  };
   io::AirsimRecording airsim;              // AirSim: the rows of airsim_rec.txt and camera_info.csv
   try {
     for (size_t k = 0; k < frame_times.size(); ++k) {
@@ -276,11 +319,13 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
         airsim.left_camera.push_back({.t_ns = t, .world_from_cam = world_from_left});
       }
       if (!queue.Push({(left_dir / lname).string(), std::move(left)}) ||
-          !queue.Push({(right_dir / rname).string(), std::move(right)})) {
+          !queue.Push({(right_dir / rname).string(), std::move(right)}) ||
+          !render_nadir_until(t)) {
         break;
       }
       if (progress) progress(k + 1, frame_times.size());
     }
+    render_nadir_until(end_ns);
   } catch (...) {
     join_writers();
     throw;
@@ -297,6 +342,26 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
   const std::vector<io::GnssRecord> gnss_enu = GnssRecordsOf(gnss, io::GnssFileKind::kEnu, nullptr);
   const std::vector<io::GnssRecord> gnss_llh =
       GnssRecordsOf(gnss, io::GnssFileKind::kLatLonHeight, &outliers);
+  if (options.nadir.enabled) {
+    io::WriteImageList((extra_root / "cam2" / "data.csv").string(), nadir_list);
+    io::WriteCameraSensorYaml(
+        (extra_root / "cam2" / "sensor.yaml").string(),
+        io::ToCameraCalibration(options.nadir.Camera(), NadirCameraMount(), options.nadir.rate_hz),
+        "nadir mapping camera, " + comment);
+  }
+  if (options.baro.enabled) {
+    fs::create_directories(extra_root / "baro0");
+    std::vector<io::BaroSample> samples;
+    samples.reserve(baro.size());
+    for (const BaroMeasurement& m : baro) samples.push_back({m.t_ns, m.altitude_m});
+    io::WriteBaroCsv((extra_root / "baro0" / "data.csv").string(), samples);
+    io::WriteBaroSensorYaml((extra_root / "baro0" / "sensor.yaml").string(),
+                            {.rate_hz = options.baro.rate_hz,
+                             .noise_sigma_m = options.baro.noise_sigma_m,
+                             .bias_sigma_m = options.baro.initial_bias_sigma_m,
+                             .bias_random_walk = options.baro.bias_random_walk},
+                            "simulated barometer, " + comment);
+  }
   if (euroc) {
     io::WriteImageList((mav0 / "cam0" / "data.csv").string(), image_list);
     io::WriteImageList((mav0 / "cam1" / "data.csv").string(), image_list);
@@ -333,6 +398,8 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
   summary.frames = frame_times.size();
   summary.imu_samples = imu.size();
   summary.gnss_samples = gnss.size();
+  summary.nadir_frames = nadir_list.size();
+  summary.baro_samples = baro.size();
   summary.duration_s = (end_ns - kStartNs) * 1e-9;
   summary.world_triangles = world.TriangleCount();
   summary.width = rig.left.width;
@@ -364,6 +431,13 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
   j["stereo_frames"] = summary.frames;
   j["imu_samples"] = summary.imu_samples;
   j["gnss_samples"] = summary.gnss_samples;
+  if (options.nadir.enabled) {
+    j["nadir_camera"] = {{"image_size", {options.nadir.width, options.nadir.height}},
+                         {"hfov_deg", options.nadir.hfov_deg},
+                         {"rate_hz", options.nadir.rate_hz},
+                         {"frames", summary.nadir_frames}};
+  }
+  if (options.baro.enabled) j["baro_samples"] = summary.baro_samples;
   j["gnss_origin"] = {gnss_opt.origin.lat_deg, gnss_opt.origin.lon_deg, gnss_opt.origin_height_m};
   if (drone) {
     j["speed_m_s"] = options.speed_m_s;
@@ -391,6 +465,17 @@ void RenderStereo(const Renderer& renderer, const SensorRig& rig, const Rigid3d&
       std::async(std::launch::async, [&] { one(rig.right, rig.body_from_right, right); });
   one(rig.left, rig.body_from_left, left);
   right_done.get();
+}
+
+cv::Mat RenderNadir(const Renderer& renderer, const NadirCameraOptions& nadir,
+                    const Rigid3d& world_from_body, int64_t t_ns, const WeatherSpec& weather,
+                    uint64_t seed) {
+  const camera::PinholeCamera cam = nadir.Camera();
+  const Rigid3d world_from_cam = world_from_body * NadirCameraMount();
+  cv::Mat img, depth;
+  renderer.Render(cam, world_from_cam, &img, &depth);
+  ApplyWeather(img, depth, cam, world_from_cam, t_ns, weather, seed);
+  return img;
 }
 
 std::vector<SuiteEntry> WeatherSuite() {

@@ -1,5 +1,7 @@
 // One simulated sequence, end to end: world, route, sensors, rendering, weather, and a dataset
-// on disk in EuRoC/ASL or AirSim format (docs/FORMATS.md).
+// on disk in EuRoC/ASL or AirSim format (docs/FORMATS.md); optionally a nadir mapping camera
+// (mav0/cam2) and a barometer (mav0/baro0), in the EuRoC layout in both formats (AirSim: cam2/
+// and baro0/ at the top of the folder).
 //
 // Output safety: the output folder must not exist or be empty (unless `force`, which clears
 // it); images are written as frames are rendered, every text file is written atomically after
@@ -36,6 +38,8 @@ struct SimulationOptions {
   bool force = false;        // clear a non-empty out_dir
   ImuOptions imu;
   GnssOptions gnss;
+  BaroOptions baro;             // baro0/ when enabled
+  NadirCameraOptions nadir;     // cam2/ when enabled (its own size: `scale` does not apply)
   std::optional<SensorRig> rig;  // default: CarRig() for car routes, DroneRig() for drones
   int png_compression = 1;       // 0-9; 1 is fast and still compresses well
 
@@ -45,6 +49,7 @@ struct SimulationOptions {
 
 struct SimulationSummary {
   size_t frames = 0, imu_samples = 0, gnss_samples = 0;
+  size_t nadir_frames = 0, baro_samples = 0;
   double duration_s = 0, path_length_m = 0;
   double wall_s = 0;
   size_t world_triangles = 0;
@@ -63,6 +68,11 @@ class Renderer;
 void RenderStereo(const Renderer& renderer, const SensorRig& rig, const Rigid3d& world_from_body,
                   int64_t t_ns, const WeatherSpec& weather, uint64_t seed, cv::Mat* left,
                   cv::Mat* right);
+
+// One nadir frame with weather (the camera at body_from_cam of `nadir`: NadirCameraMount()).
+cv::Mat RenderNadir(const Renderer& renderer, const NadirCameraOptions& nadir,
+                    const Rigid3d& world_from_body, int64_t t_ns, const WeatherSpec& weather,
+                    uint64_t seed);
 
 // The weather document's 36 sequences: for `urban` and `terrain`, default, rain, snow, leaves
 // (at 50 %), fog and dust at 25/50/75/100 %, and for urban also road wetness/snow/leaves at

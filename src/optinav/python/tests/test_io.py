@@ -20,7 +20,7 @@ def csv_rows(path):
 def test_reads_cameras_imu_and_ground_truth():
     d = read_euroc(MICRO)
     assert d["mav0"] == str(MAV0)
-    assert d["gnss"] is None
+    assert d["gnss"] is None and d["cam2"] is None and d["baro"] is None
     cam0 = d["cam0"]
     rows = csv_rows(MAV0 / "cam0" / "data.csv")
     assert cam0["t_ns"].dtype == np.int64
@@ -53,6 +53,27 @@ def test_reads_cameras_imu_and_ground_truth():
     # The ground truth dict is a trajectory for optinav.eval.
     self_ape = ape(gt, MAV0 / "state_groundtruth_estimate0" / "data.csv")
     assert self_ape["n"] == len(rows) and self_ape["max"] < 1e-12
+
+
+def test_reads_the_nadir_camera_and_barometer_of_a_simulated_flight(tmp_path, optinav_bin):
+    from conftest import run_cli
+    seq = tmp_path / "seq"
+    run_cli(optinav_bin, "sim", "--route", "drone", "--duration", "1", "--scale", "0.1",
+            "--nadir-camera", "64x48", "--out", str(seq))
+    d = read_euroc(seq)
+    cam2 = d["cam2"]
+    assert cam2["calibration"]["resolution"] == (64, 48)
+    assert len(cam2["images"]) == 6  # 5 Hz over 1 s
+    # Looking down the body's -z, image top towards the nose (docs/FORMATS.md).
+    assert np.allclose(cam2["calibration"]["body_from_cam"][:3, :3],
+                       [[0, -1, 0], [-1, 0, 0], [0, 0, -1]])
+    baro = d["baro"]
+    assert baro["t_ns"].dtype == np.int64 and baro["altitude_m"].shape == (21,)
+    assert baro["calibration"]["rate_hz"] == 20
+    gt = d["groundtruth"]
+    # Every 10th ground-truth pose is a barometer epoch (20 Hz of 200 Hz); bias within 4 sigma.
+    z = gt["position"][::10, 2][: len(baro["altitude_m"])]
+    assert abs(np.mean(baro["altitude_m"] - z)) < 8.0
 
 
 def test_errors_name_the_file_and_line(tmp_path):
