@@ -587,16 +587,12 @@ SlurmResources GnssBenchTaskResources(const GnssBenchOptions& o) {
                                                                 : 200.0);
   const double frames = seconds * 20;
   const double estimate_s = frames * (0.01 + 0.52 * megapixels);
-  SlurmResources r;
-  r.cpus_per_task = 1;
-  r.mem_mb = static_cast<int>(std::ceil((512 + 256 * megapixels) / 64) * 64);
-  r.time_min = std::max(10, static_cast<int>(std::ceil(3 * estimate_s / 60)));
-  r.derivation = fmt::format(
-      "1 CPU (unthreaded VIO); memory 512 MB + 256 MB/Mpx (measured peak ~120 MB); time 3 x {:.0f} "
-      "frames x (0.01 + 0.52 s/Mpx at {:.3f} Mpx) = 3 x {:.0f} s (rendering and VIO), 10 min at "
-      "least",
-      frames, megapixels, estimate_s);
-  return r;
+  return BenchTaskResources(
+      1, megapixels, estimate_s,
+      fmt::format("1 CPU (unthreaded VIO); memory 512 MB + 256 MB/Mpx (measured peak ~120 MB); "
+                  "time 3 x {:.0f} frames x (0.01 + 0.52 s/Mpx at {:.3f} Mpx) = 3 x {:.0f} s "
+                  "(rendering and VIO), 10 min at least",
+                  frames, megapixels, estimate_s));
 }
 
 GnssBenchResult RunGnssBench(const GnssBenchOptions& options, const GnssBenchProgress& progress) {

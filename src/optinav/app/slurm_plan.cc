@@ -1,6 +1,7 @@
 #include "optinav/app/slurm_plan.h"
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 
@@ -386,6 +387,16 @@ bool IsPlannedMerge(const std::string& kind, const std::string& out_dir,
                 {.file = (fs::path(out_dir) / "plan.json").string(), .field = "--out"});
   }
   return true;
+}
+
+SlurmResources BenchTaskResources(int cpus, double megapixels, double estimate_s,
+                                  std::string derivation) {
+  SlurmResources r;
+  r.cpus_per_task = cpus;
+  r.mem_mb = static_cast<int>(std::ceil((512 + 256 * megapixels) / 64) * 64);
+  r.time_min = std::max(10, static_cast<int>(std::ceil(3 * estimate_s / 60)));
+  r.derivation = std::move(derivation);
+  return r;
 }
 
 }  // namespace optinav::app

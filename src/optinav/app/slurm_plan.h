@@ -23,6 +23,12 @@ struct SlurmResources {
   std::string derivation;  // how the figures were derived, for plan.json and the script
 };
 
+// The resources of a benchmark task from its measured cost: `cpus` CPUs, 512 MB + 256 MB per
+// megapixel of image (rounded up to 64 MB), 3x the estimated seconds (slower or shared nodes),
+// 10 minutes at least; `derivation` says how the estimate was made.
+SlurmResources BenchTaskResources(int cpus, double megapixels, double estimate_s,
+                                  std::string derivation);
+
 // One task: a label for people and the files it writes (all present = finished; each written
 // atomically, the last one last).
 struct PlannedTask {

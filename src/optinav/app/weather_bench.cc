@@ -510,18 +510,15 @@ SlurmResources WeatherBenchTaskResources(const WeatherBenchOptions& o) {
   const double megapixels = 0.48 * o.scale * o.scale;
   const double frames = o.duration_s > 0 ? std::min(3509.0, o.duration_s / 0.03 + 1) : 3509;
   const double vio_frames = o.max_frames > 0 ? std::min<double>(frames, o.max_frames) : frames;
+  // A task renders its sequence (when no other task has) and runs one mode on it.
   const double estimate_s =
-      frames * (0.0058 + 0.2296 * megapixels) +
-      o.modes.size() * vio_frames * (0.0120 + 0.1433 * megapixels) / o.modes.size();
-  SlurmResources r;
-  r.cpus_per_task = 2;
-  r.mem_mb = static_cast<int>(std::ceil((512 + 256 * megapixels) / 64) * 64);
-  r.time_min = std::max(10, static_cast<int>(std::ceil(3 * estimate_s / 60)));
-  r.derivation = fmt::format(
-      "2 CPUs (threaded VIO); memory 512 MB + 256 MB/Mpx (measured peak ~150 MB); time 3 x "
-      "{:.0f} frames x (0.018 + 0.373 s/Mpx at {:.3f} Mpx) = 3 x {:.0f} s, 10 min at least",
-      frames, megapixels, estimate_s);
-  return r;
+      frames * (0.0058 + 0.2296 * megapixels) + vio_frames * (0.0120 + 0.1433 * megapixels);
+  return BenchTaskResources(
+      2, megapixels, estimate_s,
+      fmt::format("2 CPUs (threaded VIO); memory 512 MB + 256 MB/Mpx (measured peak ~150 MB); "
+                  "time 3 x {:.0f} frames x (0.018 + 0.373 s/Mpx at {:.3f} Mpx) = 3 x {:.0f} s, "
+                  "10 min at least",
+                  frames, megapixels, estimate_s));
 }
 
 WeatherBenchResult RunWeatherBench(const WeatherBenchOptions& options,

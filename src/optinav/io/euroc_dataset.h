@@ -61,9 +61,9 @@ struct BaroSample {
 // baro0/sensor.yaml: the noise model (white noise and a bias that drifts as a random walk).
 struct BaroCalibration {
   double rate_hz = 0;
-  double noise_sigma_m = 0;         // white noise per sample (m)
-  double bias_sigma_m = 0;          // initial bias (m, 1 sigma)
-  double bias_random_walk = 0;      // m / sqrt(s)
+  double noise_sigma_m = 0;     // white noise per sample (m)
+  double bias_sigma_m = 0;      // initial bias (m, 1 sigma)
+  double bias_random_walk = 0;  // m / sqrt(s)
 };
 
 struct CameraStream {
@@ -76,7 +76,7 @@ struct EurocDataset {
   std::optional<CameraStream> cam0, cam1;
   std::optional<CameraStream> cam2;  // the nadir mapping camera, when there is one
   std::optional<ImuCalibration> imu_calibration;
-  std::string imu_csv;          // empty when there is no imu0
+  std::string imu_csv;  // empty when there is no imu0
   std::optional<BaroCalibration> baro_calibration;
   std::string baro_csv;         // empty when there is no baro0; read it with ReadBaroCsv
   std::string gnss_csv;         // empty when there is no gnss0; read it with ReadGnssFile

@@ -188,6 +188,31 @@ const std::string& RpeDoc() {
   return doc;
 }
 
+// The arguments ape and rpe share, as EvalArgs (rpe adds its own four).
+EvalArgs CommonArgs(const std::string& align, const std::string& pose_relation, double max_diff,
+                    double t_offset, std::optional<size_t> n_to_align, bool align_origin,
+                    const std::string& ref_format, const std::string& est_format,
+                    const py::object& ref_times, const py::object& est_times,
+                    const py::object& json, const py::object& plot, const std::string& plot_plane,
+                    const py::object& save_aligned) {
+  EvalArgs a;
+  a.align = align;
+  a.pose_relation = pose_relation;
+  a.max_diff = max_diff;
+  a.t_offset = t_offset;
+  a.n_to_align = n_to_align;
+  a.align_origin = align_origin;
+  a.ref_format = ref_format;
+  a.est_format = est_format;
+  a.ref_times = ref_times;
+  a.est_times = est_times;
+  a.json = json;
+  a.plot = plot;
+  a.plot_plane = plot_plane;
+  a.save_aligned = save_aligned;
+  return a;
+}
+
 }  // namespace
 
 void DefineEval(py::module_& m) {
@@ -198,22 +223,10 @@ void DefineEval(py::module_& m) {
                       const py::object& ref_times, const py::object& est_times,
                       const py::object& json, const py::object& plot, const std::string& plot_plane,
                       const py::object& save_aligned) {
-    EvalArgs a;
-    a.align = align;
-    a.pose_relation = pose_relation;
-    a.max_diff = max_diff;
-    a.t_offset = t_offset;
-    a.n_to_align = n_to_align;
-    a.align_origin = align_origin;
-    a.ref_format = ref_format;
-    a.est_format = est_format;
-    a.ref_times = ref_times;
-    a.est_times = est_times;
-    a.json = json;
-    a.plot = plot;
-    a.plot_plane = plot_plane;
-    a.save_aligned = save_aligned;
-    return Evaluate(EvaluationSettings::Metric::kApe, ref, est, a);
+    return Evaluate(
+        EvaluationSettings::Metric::kApe, ref, est,
+        CommonArgs(align, pose_relation, max_diff, t_offset, n_to_align, align_origin, ref_format,
+                   est_format, ref_times, est_times, json, plot, plot_plane, save_aligned));
   };
   m.def("ape", ape, py::arg("ref"), py::arg("est"), py::kw_only(), py::arg("align") = "none",
         py::arg("pose_relation") = "trans", py::arg("max_diff") = 0.01, py::arg("t_offset") = 0.0,
@@ -231,25 +244,13 @@ void DefineEval(py::module_& m) {
                       const py::object& ref_times, const py::object& est_times,
                       const py::object& json, const py::object& plot, const std::string& plot_plane,
                       const py::object& save_aligned) {
-    EvalArgs a;
+    EvalArgs a =
+        CommonArgs(align, pose_relation, max_diff, t_offset, n_to_align, align_origin, ref_format,
+                   est_format, ref_times, est_times, json, plot, plot_plane, save_aligned);
     a.delta = delta;
     a.unit = unit;
     a.all_pairs = all_pairs;
     a.rel_delta_tol = rel_delta_tol;
-    a.align = align;
-    a.pose_relation = pose_relation;
-    a.max_diff = max_diff;
-    a.t_offset = t_offset;
-    a.n_to_align = n_to_align;
-    a.align_origin = align_origin;
-    a.ref_format = ref_format;
-    a.est_format = est_format;
-    a.ref_times = ref_times;
-    a.est_times = est_times;
-    a.json = json;
-    a.plot = plot;
-    a.plot_plane = plot_plane;
-    a.save_aligned = save_aligned;
     return Evaluate(EvaluationSettings::Metric::kRpe, ref, est, a);
   };
   m.def("rpe", rpe, py::arg("ref"), py::arg("est"), py::kw_only(), py::arg("delta") = 1.0,

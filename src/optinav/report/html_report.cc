@@ -180,6 +180,12 @@ double FixScale(const ReportView& v) {
   return p95 > 0 ? p95 : 1.0;
 }
 
+// A path as both the page and ReportToJson give it.
+json PathJson(const ReportPath& p, double unit) {
+  return {{"layer", p.layer}, {"name", p.name},     {"colour", p.colour_hex},
+          {"width", p.width}, {"dashed", p.dashed}, {"points", PointsJson(p.points, unit)}};
+}
+
 // What the page's script draws, with the image inlined and the fix colours resolved.
 json ViewPageJson(const ReportView& v, const std::string& base_dir) {
   const double unit = Unit(v.frame);
@@ -192,13 +198,7 @@ json ViewPageJson(const ReportView& v, const std::string& base_dir) {
                   {"bounds", PointsJson({v.image->min, v.image->max}, unit)}};
   }
   json paths = json::array();
-  for (const ReportPath& p : v.paths)
-    paths.push_back({{"layer", p.layer},
-                     {"name", p.name},
-                     {"colour", p.colour_hex},
-                     {"width", p.width},
-                     {"dashed", p.dashed},
-                     {"points", PointsJson(p.points, unit)}});
+  for (const ReportPath& p : v.paths) paths.push_back(PathJson(p, unit));
   const double scale = FixScale(v);
   json fixes = json::array();
   for (const ReportFix& f : v.fixes)
@@ -386,13 +386,7 @@ nlohmann::json ReportToJson(const ReportDocument& doc) {
   for (const ReportView& v : doc.views) {
     const double unit = Unit(v.frame);
     json paths = json::array(), fixes = json::array(), markers = json::array();
-    for (const ReportPath& p : v.paths)
-      paths.push_back({{"layer", p.layer},
-                       {"name", p.name},
-                       {"colour", p.colour_hex},
-                       {"width", p.width},
-                       {"dashed", p.dashed},
-                       {"points", PointsJson(p.points, unit)}});
+    for (const ReportPath& p : v.paths) paths.push_back(PathJson(p, unit));
     for (const ReportFix& f : v.fixes)
       fixes.push_back({{"layer", f.layer},
                        {"name", f.name},

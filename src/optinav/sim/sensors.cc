@@ -95,7 +95,8 @@ std::string BaroOptions::Check() const {
   for (const auto& [name, v] : {std::pair{"noise_sigma_m", noise_sigma_m},
                                 {"initial_bias_sigma_m", initial_bias_sigma_m},
                                 {"bias_random_walk", bias_random_walk}}) {
-    if (!(v >= 0) || !std::isfinite(v)) return fmt::format("barometer {} = {} must be >= 0", name, v);
+    if (!(v >= 0) || !std::isfinite(v))
+      return fmt::format("barometer {} = {} must be >= 0", name, v);
   }
   if (!(noise_sigma_m > 0)) return "barometer noise_sigma_m must be > 0";
   return "";

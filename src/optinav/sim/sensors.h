@@ -54,9 +54,9 @@ std::vector<ImuMeasurement> SimulateImu(const BodyTrajectory& trajectory, const 
 // as a random walk (sigma per step = random_walk * sqrt(dt)) from an initial Gaussian draw.
 // Defaults: a MEMS barometer (MS5611 class) after its usual filtering.
 struct BaroOptions {
-  bool enabled = false;            // `optinav sim` turns it on for drone routes
+  bool enabled = false;  // `optinav sim` turns it on for drone routes
   double rate_hz = 20.0;
-  double noise_sigma_m = 0.3;      // white noise per sample
+  double noise_sigma_m = 0.3;  // white noise per sample
   double initial_bias_sigma_m = 2.0;
   double bias_random_walk = 0.02;  // m / sqrt(s): about 0.5 m of drift in 10 minutes
   std::string Check() const;

@@ -286,7 +286,7 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
     }
     return true;
   };
-  io::AirsimRecording airsim;              // AirSim: the rows of airsim_rec.txt and camera_info.csv
+  io::AirsimRecording airsim;  // AirSim: the rows of airsim_rec.txt and camera_info.csv
   try {
     for (size_t k = 0; k < frame_times.size(); ++k) {
       const int64_t t = frame_times[k];
@@ -319,8 +319,7 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
         airsim.left_camera.push_back({.t_ns = t, .world_from_cam = world_from_left});
       }
       if (!queue.Push({(left_dir / lname).string(), std::move(left)}) ||
-          !queue.Push({(right_dir / rname).string(), std::move(right)}) ||
-          !render_nadir_until(t)) {
+          !queue.Push({(right_dir / rname).string(), std::move(right)}) || !render_nadir_until(t)) {
         break;
       }
       if (progress) progress(k + 1, frame_times.size());

@@ -38,8 +38,8 @@ struct SimulationOptions {
   bool force = false;        // clear a non-empty out_dir
   ImuOptions imu;
   GnssOptions gnss;
-  BaroOptions baro;             // baro0/ when enabled
-  NadirCameraOptions nadir;     // cam2/ when enabled (its own size: `scale` does not apply)
+  BaroOptions baro;              // baro0/ when enabled
+  NadirCameraOptions nadir;      // cam2/ when enabled (its own size: `scale` does not apply)
   std::optional<SensorRig> rig;  // default: CarRig() for car routes, DroneRig() for drones
   int png_compression = 1;       // 0-9; 1 is fast and still compresses well
 

@@ -85,7 +85,8 @@ TEST(Simulation, NadirCameraAndBarometerOfADroneFlight) {
   SimulationOptions o = Small((dir / "seq").string(), DatasetFormat::kEuroc);
   o.route = "drone";
   // Flat ground (z = 0) textured with a real orthophoto: the ground under a ray is exact.
-  o.world = ParseWorld("ortho:" + (testing::SharedDataDir() / "geo/naip/naip_20170827.tif").string());
+  o.world =
+      ParseWorld("ortho:" + (testing::SharedDataDir() / "geo/naip/naip_20170827.tif").string());
   o.altitude_m = 60;
   o.duration_s = 3;
   o.nadir.enabled = true;
@@ -135,8 +136,8 @@ TEST(Simulation, NadirCameraAndBarometerOfADroneFlight) {
     cv::imread(ds.cam2->images[6].path, cv::IMREAD_GRAYSCALE).convertTo(b, CV_32F);
     const cv::Point2d shift = cv::phaseCorrelate(a, b);
     const Eigen::Vector2d measured(shift.x, shift.y);
-    std::printf("nadir shift: predicted (%.2f, %.2f) px, measured (%.2f, %.2f) px\n",
-                predicted.x(), predicted.y(), measured.x(), measured.y());
+    std::printf("nadir shift: predicted (%.2f, %.2f) px, measured (%.2f, %.2f) px\n", predicted.x(),
+                predicted.y(), measured.x(), measured.y());
     ASSERT_GT(predicted.norm(), 1.0);
     EXPECT_GT(predicted.normalized().dot(measured.normalized()), 0.8);
     EXPECT_NEAR(measured.norm(), predicted.norm(), 0.15 * predicted.norm());
