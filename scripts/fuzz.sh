@@ -109,9 +109,9 @@ run_one() {
   local rc=$?
   # (Runs in a background subshell: the stats parsing below may find nothing after a crash.)
   local execs speed last cov ft corp
-  execs=$(grep 'stat::number_of_executed_units:' "${log}" | awk '{print $2}' | tail -1)
-  speed=$(grep 'stat::average_exec_per_sec:' "${log}" | awk '{print $2}' | tail -1)
-  last=$(grep -E '^#[0-9]+' "${log}" | tail -1)
+  execs=$(grep -a 'stat::number_of_executed_units:' "${log}" | awk '{print $2}' | tail -1)
+  speed=$(grep -a 'stat::average_exec_per_sec:' "${log}" | awk '{print $2}' | tail -1)
+  last=$(grep -a -E '^#[0-9]+' "${log}" | tail -1)
   cov=$(sed -n 's/.* cov: \([0-9]*\).*/\1/p' <<<"${last}")
   ft=$(sed -n 's/.* ft: \([0-9]*\).*/\1/p' <<<"${last}")
   corp=$(sed -n 's/.* corp: \([0-9]*\/[0-9a-zA-Z]*\).*/\1/p' <<<"${last}")

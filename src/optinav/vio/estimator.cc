@@ -53,6 +53,20 @@ std::string VioOptions::Check() const {
   return "";
 }
 
+namespace {
+
+// A mapping key as a name. YAML allows a sequence or a map as a key ("? [a]: 1"); as<string>
+// would throw YAML's own exception out of the loader (found by fuzz/vio_config).
+std::string KeyName(const YamlFile& file, const YAML::Node& key, const std::string& prefix) {
+  if (!key.IsScalar()) {
+    throw Error("a key must be a plain name, not a sequence or a map",
+                internal::YamlContext(file, key, prefix + "<key>"));
+  }
+  return key.Scalar();
+}
+
+}  // namespace
+
 VioOptions LoadVioOptions(const std::string& path) {
   const YamlFile file = LoadYamlFile(path);
   VioOptions o;
@@ -159,7 +173,7 @@ VioOptions LoadVioOptions(const std::string& path) {
       {"pipeline", {{"feedback_lag_frames", &o.feedback_lag_frames}}},
   };
   for (const auto& kv : root) {
-    const std::string key = kv.first.as<std::string>();
+    const std::string key = KeyName(file, kv.first, "");
     if (key == "mode") {
       const std::string mode = YamlGet<std::string>(file, root, "mode");
       const auto parsed = ParseVioMode(mode);
@@ -176,7 +190,7 @@ VioOptions LoadVioOptions(const std::string& path) {
     if (!node.IsMap())
       throw Error("expected a map of options", internal::YamlContext(file, node, key));
     for (const auto& entry : node) {
-      const std::string name = entry.first.as<std::string>();
+      const std::string name = KeyName(file, entry.first, key + ".");
       const auto field = std::find_if(section->second.begin(), section->second.end(),
                                       [&](const auto& p) { return name == p.first; });
       if (field == section->second.end())

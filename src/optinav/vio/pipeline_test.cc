@@ -611,6 +611,15 @@ TEST(VioConfig, BadConfigsNameTheKey) {
       optinav::testing::WriteFile(dir / "e.yaml", "loop_closure:\n  stereo_imu: maybe\n");
   EXPECT_ERROR(LoadVioOptions(flag), {.file = flag, .line = 2, .field = "stereo_imu"},
                "cannot convert value 'maybe'");
+  // A map or a sequence as a key (YAML's "? ..." form), at the top and inside a section: an
+  // Error naming the line, not YAML's exception (fuzz/regressions/vio_config/complex_key_*).
+  const std::string top = optinav::testing::WriteFile(dir / "f.yaml", "? {a: 1}\n: 2\n");
+  EXPECT_ERROR(LoadVioOptions(top), {.file = top, .line = 1, .field = "<key>"},
+               "a key must be a plain name");
+  const std::string inner =
+      optinav::testing::WriteFile(dir / "g.yaml", "frontend:\n  ? [max_features]\n  : 100\n");
+  EXPECT_ERROR(LoadVioOptions(inner), {.file = inner, .line = 2, .field = "frontend.<key>"},
+               "a key must be a plain name");
 }
 
 }  // namespace
