@@ -144,6 +144,15 @@ std::string WorldName(WorldKind k) {
   return "?";
 }
 
+// One camera's image with its weather (the stereo pair and the nadir camera render this way).
+void RenderWithWeather(const Renderer& renderer, const camera::PinholeCamera& cam,
+                       const Rigid3d& world_from_cam, int64_t t_ns, const WeatherSpec& weather,
+                       uint64_t seed, cv::Mat* img) {
+  cv::Mat depth;
+  renderer.Render(cam, world_from_cam, img, &depth);
+  ApplyWeather(*img, depth, cam, world_from_cam, t_ns, weather, seed);
+}
+
 }  // namespace
 
 std::string SimulationOptions::Check() const {
@@ -455,10 +464,7 @@ void RenderStereo(const Renderer& renderer, const SensorRig& rig, const Rigid3d&
                   int64_t t_ns, const WeatherSpec& weather, uint64_t seed, cv::Mat* left,
                   cv::Mat* right) {
   auto one = [&](const camera::PinholeCamera& cam, const Rigid3d& body_from_cam, cv::Mat* img) {
-    const Rigid3d world_from_cam = world_from_body * body_from_cam;
-    cv::Mat depth;
-    renderer.Render(cam, world_from_cam, img, &depth);
-    ApplyWeather(*img, depth, cam, world_from_cam, t_ns, weather, seed);
+    RenderWithWeather(renderer, cam, world_from_body * body_from_cam, t_ns, weather, seed, img);
   };
   auto right_done =
       std::async(std::launch::async, [&] { one(rig.right, rig.body_from_right, right); });
@@ -469,11 +475,9 @@ void RenderStereo(const Renderer& renderer, const SensorRig& rig, const Rigid3d&
 cv::Mat RenderNadir(const Renderer& renderer, const NadirCameraOptions& nadir,
                     const Rigid3d& world_from_body, int64_t t_ns, const WeatherSpec& weather,
                     uint64_t seed) {
-  const camera::PinholeCamera cam = nadir.Camera();
-  const Rigid3d world_from_cam = world_from_body * NadirCameraMount();
-  cv::Mat img, depth;
-  renderer.Render(cam, world_from_cam, &img, &depth);
-  ApplyWeather(img, depth, cam, world_from_cam, t_ns, weather, seed);
+  cv::Mat img;
+  RenderWithWeather(renderer, nadir.Camera(), world_from_body * NadirCameraMount(), t_ns, weather,
+                    seed, &img);
   return img;
 }
 
