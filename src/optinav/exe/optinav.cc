@@ -27,6 +27,8 @@ constexpr Command kCommands[] = {
     {"mission", optinav::RunMission,
      "GNSS-denied missions to a target over an orthophoto map (30-run experiments)"},
     {"vio", optinav::RunVio, "stereo visual-inertial odometry on a EuRoC/ASL dataset"},
+    {"nav", optinav::RunNav,
+     "map-aided inertial navigation: IMU + nadir camera + barometer + map fixes"},
     {"bench", optinav::RunBench, "benchmarks: bench gnss (GNSS fusion table on simulated flights)"},
     {"report", optinav::RunReport,
      "one self-contained HTML report (map, paths, fixes, errors) of a command's output"},

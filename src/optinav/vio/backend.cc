@@ -102,6 +102,7 @@ void SlidingWindowBackend::Reset() {
   timed_factors_.clear();
   alignment_enabled_ = false;
   alignment_yaw_held_ = false;
+  globals_.clear();
   prior_ = LinearPrior();
   rejected_tracks_.clear();
   stats_ = BackendStats();
@@ -221,12 +222,127 @@ WorldAlignment SlidingWindowBackend::alignment() const {
 }
 
 std::vector<double*> SlidingWindowBackend::TimedFactorBlocks(const TimedFactor& factor,
-                                                             State* anchor) {
+                                                             State* anchor) const {
   if (factor.uses_alignment() && !alignment_enabled_) return {};
   std::vector<double*> blocks{anchor->pose};
   if (options_.use_imu) blocks.push_back(anchor->speed_bias);
-  if (factor.uses_alignment()) blocks.push_back(alignment_);
+  if (factor.uses_alignment()) blocks.push_back(const_cast<double*>(alignment_));
+  for (int id : factor.global_blocks()) {
+    OPTINAV_CHECK_MSG(id >= 0 && id < static_cast<int>(globals_.size()),
+                      "timed factor names global block " + std::to_string(id));
+    blocks.push_back(globals_[id]->values.data());
+  }
   return blocks;
+}
+
+int SlidingWindowBackend::AddGlobalBlock(const Eigen::VectorXd& initial,
+                                         const Eigen::VectorXd& prior_sigma,
+                                         const Eigen::VectorXd& walk_per_sqrt_s) {
+  OPTINAV_CHECK(initialized());
+  const Eigen::Index n = initial.size();
+  OPTINAV_CHECK(n > 0 && prior_sigma.size() == n && walk_per_sqrt_s.size() == n);
+  OPTINAV_CHECK((prior_sigma.array() > 0).all() && (walk_per_sqrt_s.array() >= 0).all());
+  auto global = std::make_unique<Global>();
+  global->values.assign(initial.data(), initial.data() + n);
+  global->walk_per_sqrt_s = walk_per_sqrt_s;
+  // Append an independent block to the prior, as EnableAlignment does.
+  LinearPrior::Block block;
+  block.values = global->values.data();
+  block.ambient_size = block.tangent_size = static_cast<int>(n);
+  block.manifold = nullptr;
+  block.x0 = global->values;
+  const Eigen::Index rows = prior_.J.rows(), cols = prior_.J.cols();
+  Eigen::MatrixXd J = Eigen::MatrixXd::Zero(rows + n, cols + n);
+  J.topLeftCorner(rows, cols) = prior_.J;
+  J.bottomRightCorner(n, n) = prior_sigma.cwiseInverse().asDiagonal();
+  Eigen::VectorXd r0 = Eigen::VectorXd::Zero(rows + n);
+  r0.head(rows) = prior_.r0;
+  prior_.J = std::move(J);
+  prior_.r0 = std::move(r0);
+  prior_.blocks.push_back(block);
+  globals_.push_back(std::move(global));
+  return static_cast<int>(globals_.size()) - 1;
+}
+
+Eigen::VectorXd SlidingWindowBackend::GlobalBlock(int id) const {
+  OPTINAV_CHECK(id >= 0 && id < static_cast<int>(globals_.size()));
+  const std::vector<double>& v = globals_[id]->values;
+  return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
+}
+
+std::vector<std::unique_ptr<ResidualSpec>> SlidingWindowBackend::BuildStateResiduals() const {
+  std::vector<std::unique_ptr<ResidualSpec>> specs;
+  if (options_.use_imu) {
+    for (size_t k = 1; k < states_.size(); ++k) {
+      const State& a = *states_[k - 1];
+      const State& b = *states_[k];
+      if (!b.has_preintegration || b.preintegration.dt_s() <= 0) continue;
+      auto spec = std::make_unique<ResidualSpec>();
+      spec->cost.reset(CreateImuFactor(b.preintegration, options_.gravity));
+      spec->blocks = {const_cast<double*>(a.pose), const_cast<double*>(a.speed_bias),
+                      const_cast<double*>(b.pose), const_cast<double*>(b.speed_bias)};
+      specs.push_back(std::move(spec));
+    }
+  }
+  if (!prior_.empty()) {
+    auto spec = std::make_unique<ResidualSpec>();
+    spec->cost.reset(prior_.CreateCostFunction());
+    for (const auto& b : prior_.blocks) spec->blocks.push_back(b.values);
+    specs.push_back(std::move(spec));
+  }
+  for (const auto& factor : timed_factors_) {
+    ImuPreintegration anchor_to_t;
+    State* anchor = AnchorFor(factor->t_ns(), &anchor_to_t);
+    if (!anchor) continue;
+    std::vector<double*> blocks = TimedFactorBlocks(*factor, anchor);
+    if (blocks.empty()) continue;
+    auto spec = std::make_unique<ResidualSpec>();
+    spec->cost.reset(factor->Create(anchor_to_t, options_.gravity, options_.use_imu));
+    spec->loss = factor->loss();
+    spec->blocks = std::move(blocks);
+    specs.push_back(std::move(spec));
+  }
+  return specs;
+}
+
+Eigen::MatrixXd SlidingWindowBackend::NewestCovariance() const {
+  OPTINAV_CHECK(initialized());
+  // Every block but the newest state's is marginalised out; the prior left on the newest state
+  // is the square root of its marginal information.
+  std::vector<std::unique_ptr<ResidualSpec>> owned = BuildStateResiduals();
+  for (auto& spec :
+       BuildResiduals([](const State*) { return true; }, [](const Landmark*) { return true; }))
+    owned.push_back(std::move(spec));
+  const State& newest = *states_.back();
+  std::set<const double*> keep{newest.pose};
+  if (options_.use_imu) keep.insert(newest.speed_bias);
+  std::vector<double*> marginalize;
+  std::set<const double*> seen;
+  for (const auto& spec : owned)
+    for (double* b : spec->blocks)
+      if (!keep.count(b) && seen.insert(b).second) marginalize.push_back(b);
+  std::vector<const ResidualSpec*> specs;
+  for (const auto& s : owned) specs.push_back(s.get());
+  const LinearPrior left = Marginalize(
+      specs, marginalize, [&](const double* b) { return ManifoldOf(b); },
+      [&](const double* b) { return SizeOf(b); });
+  const int n = options_.use_imu ? kPoseTangentSize + kSpeedBiasSize : kPoseTangentSize;
+  // The kept blocks in the prior's order -> pose first, then speed-bias.
+  Eigen::MatrixXd info = Eigen::MatrixXd::Zero(n, n);
+  if (!left.empty()) {
+    std::vector<int> to(left.J.cols());
+    int col = 0;
+    for (const auto& b : left.blocks) {
+      const int base = b.values == newest.pose ? 0 : kPoseTangentSize;
+      for (int i = 0; i < b.tangent_size; ++i) to[col++] = base + i;
+    }
+    const Eigen::MatrixXd h = left.J.transpose() * left.J;
+    for (Eigen::Index i = 0; i < h.rows(); ++i)
+      for (Eigen::Index j = 0; j < h.cols(); ++j) info(to[i], to[j]) += h(i, j);
+  }
+  // An unconstrained direction (no information) gets a huge variance rather than a failure.
+  info.diagonal().array() += 1e-12;
+  return info.ldlt().solve(Eigen::MatrixXd::Identity(n, n));
 }
 
 void SlidingWindowBackend::AddTimedFactor(std::unique_ptr<TimedFactor> factor) {
@@ -373,6 +489,8 @@ const ceres::Manifold* SlidingWindowBackend::ManifoldOf(const double* block) con
 
 int SlidingWindowBackend::SizeOf(const double* block) const {
   if (block == alignment_) return kAlignmentSize;
+  for (const auto& g : globals_)
+    if (block == g->values.data()) return static_cast<int>(g->values.size());
   for (const auto& s : states_) {
     if (block == s->pose) return kPoseSize;
     if (block == s->speed_bias) return kSpeedBiasSize;
@@ -478,6 +596,8 @@ void SlidingWindowBackend::Optimize() {
     if (options_.use_imu) add_block(s->speed_bias, kSpeedBiasSize, nullptr);
   }
   if (alignment_enabled_) add_block(alignment_, kAlignmentSize, nullptr);
+  for (const auto& g : globals_)
+    add_block(g->values.data(), static_cast<int>(g->values.size()), nullptr);
   std::vector<size_t> offset(live.size() + 1, 0);
   for (size_t i = 0; i < live.size(); ++i) offset[i + 1] = offset[i] + sizes[i];
   std::vector<double> packed(offset.back());
@@ -665,6 +785,12 @@ void SlidingWindowBackend::MarginalizeOldest() {
         std::max(alignment_walk_translation_ * alignment_walk_translation_ * d, 1e-12);
     q(3, 3) = std::max(q(3, 3), 1e-12);
     prior_ = AddRandomWalk(prior_, alignment_, q);
+  }
+  const double dt_s = (states_[1]->t_ns - oldest->t_ns) * 1e-9;
+  for (const auto& g : globals_) {
+    if (!(g->walk_per_sqrt_s.array() > 0).any() || !prior_.Involves(g->values.data())) continue;
+    const Eigen::VectorXd var = (g->walk_per_sqrt_s.array().square() * dt_s).max(1e-12).matrix();
+    prior_ = AddRandomWalk(prior_, g->values.data(), var.asDiagonal().toDenseMatrix());
   }
 
   // Remove what left the window.

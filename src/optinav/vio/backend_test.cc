@@ -155,6 +155,90 @@ TEST(Backend, TimedFactorsPullTheEstimate) {
   EXPECT_LT(held.position_rmse_m, 0.5 * free_run.position_rmse_m);
 }
 
+// An altimeter with an unknown constant offset: z(t) + offset - measured, the offset a global
+// block of the window.
+struct OffsetAltimeterFunctor {
+  TimedStatePredictor predict;
+  double measured, sigma;
+  template <typename T>
+  bool operator()(const T* pose, const T* sb, const T* offset, T* r) const {
+    Eigen::Matrix<T, 3, 1> p;
+    predict(pose, sb, &p, nullptr, nullptr);
+    r[0] = (p[2] + offset[0] - T(measured)) / T(sigma);
+    return true;
+  }
+};
+
+class OffsetAltimeterFactor : public TimedFactor {
+ public:
+  OffsetAltimeterFactor(int64_t t_ns, double measured, int block)
+      : t_ns_(t_ns), measured_(measured), block_(block) {}
+  int64_t t_ns() const override { return t_ns_; }
+  ceres::CostFunction* Create(const ImuPreintegration& pre, const Eigen::Vector3d& g,
+                              bool) const override {
+    return new ceres::AutoDiffCostFunction<OffsetAltimeterFunctor, 1, kPoseSize, kSpeedBiasSize,
+                                           1>(
+        new OffsetAltimeterFunctor{TimedStatePredictor(pre, g), measured_, 0.01});
+  }
+  std::vector<int> global_blocks() const override { return {block_}; }
+
+ private:
+  int64_t t_ns_;
+  double measured_;
+  int block_;
+};
+
+TEST(Backend, GlobalBlockAndNewestCovariance) {
+  // No vision: position factors (2 cm) every 0.5 s and an altimeter reading 0.7 m high at 20 Hz.
+  // The altimeter's offset, a global block with a 2 m prior, must come out as 0.7 m, carried
+  // through marginalisation; the newest state's covariance must be consistent with that.
+  SyntheticScene scene;
+  scene.landmarks.clear();
+  const auto frames = scene.Generate(6.0, 20.0, 0.7, true, 5);
+  BackendOptions options;
+  options.imu_noise = scene.noise;
+  options.window_keyframes = 6;
+  SlidingWindowBackend backend(options, scene.rig);
+  StateEstimate init;
+  init.t_ns = frames[0].t_ns;
+  init.world_from_body = scene.trajectory.Pose(0.0);
+  init.velocity = scene.trajectory.Velocity(0.0);
+  backend.Initialize(init, {});
+  const int offset = backend.AddGlobalBlock(Eigen::VectorXd::Zero(1), Eigen::VectorXd::Constant(1, 2.0),
+                                            Eigen::VectorXd::Constant(1, 0.001));
+  EXPECT_EQ(backend.GlobalBlock(offset).size(), 1);
+  for (double t = 0.33; t < 6.0; t += 0.5)
+    backend.AddTimedFactor(std::make_unique<TestPositionFactor>(
+        static_cast<int64_t>(t * 1e9), scene.trajectory.Position(t), 0.02));
+  for (double t = 0.01; t < 6.0; t += 0.05)
+    backend.AddTimedFactor(std::make_unique<OffsetAltimeterFactor>(
+        static_cast<int64_t>(t * 1e9), scene.trajectory.Position(t).z() + 0.7, offset));
+  std::vector<TimedImuSample> imu(frames[0].imu.begin(), frames[0].imu.end());
+  for (size_t i = 1; i < frames.size(); ++i) {
+    imu.insert(imu.end(), frames[i].imu.begin(), frames[i].imu.end());
+    ImuPreintegration pre(ImuBias{}, scene.noise);
+    for (const ImuMeasurement& m : ImuMeasurementsBetween(imu, frames[i - 1].t_ns, frames[i].t_ns))
+      pre.Integrate(m.gyro, m.accel, m.dt_s);
+    backend.AddFrame(frames[i].t_ns, pre, {}, true);
+  }
+  const double estimated = backend.GlobalBlock(offset)[0];
+  const Eigen::MatrixXd cov = backend.NewestCovariance();
+  ASSERT_EQ(cov.rows(), 15);
+  const double sigma_z = std::sqrt(cov(2, 2)), sigma_x = std::sqrt(cov(0, 0));
+  const double error = (backend.Newest().world_from_body.translation -
+                        scene.trajectory.Position(frames.back().t_ns * 1e-9))
+                           .norm();
+  std::printf("altimeter offset %.4f m (truth 0.7, |err| < 0.02); newest position error %.4f m, "
+              "sigma x %.4f m, sigma z %.4f m (in (0.001, 0.2))\n",
+              estimated, error, sigma_x, sigma_z);
+  EXPECT_NEAR(estimated, 0.7, 0.02);
+  EXPECT_GT(sigma_x, 0.001);
+  EXPECT_LT(sigma_x, 0.2);
+  EXPECT_LT(sigma_z, 0.2);
+  EXPECT_TRUE((cov - cov.transpose()).cwiseAbs().maxCoeff() < 1e-6 * cov.cwiseAbs().maxCoeff());
+  EXPECT_LT(error, 5 * std::max(sigma_x, sigma_z) + 0.02);
+}
+
 TEST(Marginalize, SchurComplementKeepsTheSolution) {
   // A linear Gaussian chain x0 - x1 - x2 (3-vectors): marginalising x0 and solving the rest
   // gives the same x1, x2 as solving everything.

@@ -99,33 +99,14 @@ class GnssFunctor {
  public:
   GnssFunctor(const ImuPreintegration& pre, const Eigen::Vector3d& gravity,
               const Eigen::Vector3d& lever, const Eigen::Vector3d& measured, double sigma)
-      : dt_(pre.dt_s()),
-        delta_R_(pre.delta_R()),
-        delta_p_(pre.delta_p()),
-        dR_dbg_(pre.dR_dbg()),
-        dp_dbg_(pre.dp_dbg()),
-        dp_dba_(pre.dp_dba()),
-        bg0_(pre.linearization_bias().gyro),
-        ba0_(pre.linearization_bias().accel),
-        gravity_(gravity),
-        lever_(lever),
-        measured_(measured),
-        inv_sigma_(1.0 / sigma) {}
+      : predict_(pre, gravity), lever_(lever), measured_(measured), inv_sigma_(1.0 / sigma) {}
 
   template <typename T>
   bool operator()(const T* pose, const T* sb, const T* align, T* residuals) const {
-    const Eigen::Map<const Vec3<T>> p_i(pose), v_i(sb), bg(sb + 3), ba(sb + 6);
-    const Eigen::Map<const Eigen::Quaternion<T>> q_i(pose + 3);
-    const Vec3<T> dbg = bg - bg0_.cast<T>(), dba = ba - ba0_.cast<T>();
-    const Vec3<T> dp = delta_p_.cast<T>() + dp_dbg_.cast<T>() * dbg + dp_dba_.cast<T>() * dba;
-    const Vec3<T> rot_corr = dR_dbg_.cast<T>() * dbg;
-    T aa[3] = {rot_corr[0], rot_corr[1], rot_corr[2]}, wxyz[4];
-    ceres::AngleAxisToQuaternion(aa, wxyz);
-    const Eigen::Quaternion<T> dR =
-        delta_R_.cast<T>() * Eigen::Quaternion<T>(wxyz[0], wxyz[1], wxyz[2], wxyz[3]);
-    const T dt(dt_);
-    const Vec3<T> p_t = p_i + v_i * dt + T(0.5) * gravity_.cast<T>() * dt * dt + q_i * dp;
-    const Vec3<T> antenna = p_t + (q_i * dR) * lever_.cast<T>();
+    Vec3<T> p_t;
+    Eigen::Quaternion<T> q_t;
+    predict_(pose, sb, &p_t, nullptr, &q_t);
+    const Vec3<T> antenna = p_t + q_t * lever_.cast<T>();
     T enu[3];
     ApplyAlignment(align, antenna, enu);
     for (int k = 0; k < 3; ++k) residuals[k] = (enu[k] - T(measured_[k])) * T(inv_sigma_);
@@ -133,11 +114,8 @@ class GnssFunctor {
   }
 
  private:
-  double dt_;
-  Eigen::Quaterniond delta_R_;
-  Eigen::Vector3d delta_p_;
-  Eigen::Matrix3d dR_dbg_, dp_dbg_, dp_dba_;
-  Eigen::Vector3d bg0_, ba0_, gravity_, lever_, measured_;
+  TimedStatePredictor predict_;
+  Eigen::Vector3d lever_, measured_;
   double inv_sigma_;
 };
 

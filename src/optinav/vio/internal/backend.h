@@ -141,6 +141,8 @@ class TimedFactor {
   // True: the cost takes the world alignment block (4 parameters) after the state's blocks. Such
   // factors wait until the alignment is enabled.
   virtual bool uses_alignment() const { return false; }
+  // Global blocks (SlidingWindowBackend::AddGlobalBlock ids) the cost takes last, in this order.
+  virtual std::vector<int> global_blocks() const { return {}; }
 };
 
 struct BackendStats {
@@ -194,6 +196,17 @@ class SlidingWindowBackend {
   void InflateAlignment(const Eigen::Vector4d& sigma);
   // Holds the alignment yaw constant in the solves (GNSS cannot observe it without motion).
   void SetAlignmentYawHeld(bool held) { alignment_yaw_held_ = held; }
+  // A global block: a Euclidean state shared by the whole window (e.g. a barometer's bias), with
+  // a Gaussian prior (sigma per value), optimised with the window, carried through
+  // marginalisation, and forgetting `walk_per_sqrt_s` (sigma per sqrt(second) per value) as the
+  // window moves on. Returns its id for TimedFactor::global_blocks(). Cleared by Reset().
+  int AddGlobalBlock(const Eigen::VectorXd& initial, const Eigen::VectorXd& prior_sigma,
+                     const Eigen::VectorXd& walk_per_sqrt_s);
+  Eigen::VectorXd GlobalBlock(int id) const;
+  // The marginal covariance of the newest state (the window's linearisation at its current
+  // values): 15x15 over the pose tangent (position, rotation vector in the world frame) and the
+  // speed-bias block, or 6x6 without IMU.
+  Eigen::MatrixXd NewestCovariance() const;
   // Timed factors waiting for or used by the window (not yet marginalised).
   size_t num_timed_factors() const { return timed_factors_.size(); }
 
@@ -223,7 +236,9 @@ class SlidingWindowBackend {
                        double accel_bias_sigma);
   State* AnchorFor(int64_t t_ns, ImuPreintegration* anchor_to_t) const;
   // The blocks of a timed factor anchored at `anchor`, or empty when it cannot be used yet.
-  std::vector<double*> TimedFactorBlocks(const TimedFactor& factor, State* anchor);
+  std::vector<double*> TimedFactorBlocks(const TimedFactor& factor, State* anchor) const;
+  // The IMU, prior and timed-factor residuals of the whole window (reprojections excluded).
+  std::vector<std::unique_ptr<ResidualSpec>> BuildStateResiduals() const;
   const ceres::Manifold* ManifoldOf(const double* block) const;
   int SizeOf(const double* block) const;
 
@@ -238,6 +253,11 @@ class SlidingWindowBackend {
   bool alignment_yaw_held_ = false;
   double alignment_walk_translation_ = 0, alignment_walk_yaw_ = 0;
   std::unique_ptr<ceres::Manifold> yaw_held_manifold_;
+  struct Global {
+    std::vector<double> values;
+    Eigen::VectorXd walk_per_sqrt_s;
+  };
+  std::vector<std::unique_ptr<Global>> globals_;
   LinearPrior prior_;
   std::set<uint64_t> rejected_tracks_;
   BackendStats stats_;

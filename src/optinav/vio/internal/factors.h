@@ -9,6 +9,7 @@
 
 #include <functional>
 #include <memory>
+#include <type_traits>
 #include <vector>
 
 #include <ceres/ceres.h>
@@ -32,6 +33,61 @@ const ceres::Manifold* PoseManifold();
 // pose_j, speed_bias_j.
 ceres::CostFunction* CreateImuFactor(const ImuPreintegration& preintegration,
                                      const Eigen::Vector3d& gravity = GravityInWorld());
+
+// The state at time t predicted from an anchor state i (its pose and speed-bias blocks) and the
+// IMU preintegrated from i to t, with first-order bias corrections:
+//   p_t = p_i + v_i dt + g dt^2 / 2 + R_i dp,  v_t = v_i + g dt + R_i dv,  R_t = R_i dR
+// What every timed factor (GNSS, map fixes, barometer, velocity) evaluates.
+class TimedStatePredictor {
+ public:
+  TimedStatePredictor(const ImuPreintegration& pre, const Eigen::Vector3d& gravity)
+      : dt_(pre.dt_s()),
+        delta_R_(pre.delta_R()),
+        delta_v_(pre.delta_v()),
+        delta_p_(pre.delta_p()),
+        dR_dbg_(pre.dR_dbg()),
+        dv_dbg_(pre.dv_dbg()),
+        dv_dba_(pre.dv_dba()),
+        dp_dbg_(pre.dp_dbg()),
+        dp_dba_(pre.dp_dba()),
+        bg0_(pre.linearization_bias().gyro),
+        ba0_(pre.linearization_bias().accel),
+        gravity_(gravity) {}
+
+  template <typename T>
+  void operator()(const T* pose, const T* speed_bias,
+                  std::type_identity_t<Eigen::Matrix<T, 3, 1>>* p_t,
+                  std::type_identity_t<Eigen::Matrix<T, 3, 1>>* v_t,
+                  std::type_identity_t<Eigen::Quaternion<T>>* q_t) const {
+    using Vec3 = Eigen::Matrix<T, 3, 1>;
+    const Eigen::Map<const Vec3> p_i(pose), v_i(speed_bias), bg(speed_bias + 3),
+        ba(speed_bias + 6);
+    const Eigen::Map<const Eigen::Quaternion<T>> q_i(pose + 3);
+    const Vec3 dbg = bg - bg0_.cast<T>(), dba = ba - ba0_.cast<T>();
+    const T dt(dt_);
+    if (p_t) {
+      const Vec3 dp = delta_p_.cast<T>() + dp_dbg_.cast<T>() * dbg + dp_dba_.cast<T>() * dba;
+      *p_t = p_i + v_i * dt + T(0.5) * gravity_.cast<T>() * dt * dt + q_i * dp;
+    }
+    if (v_t) {
+      const Vec3 dv = delta_v_.cast<T>() + dv_dbg_.cast<T>() * dbg + dv_dba_.cast<T>() * dba;
+      *v_t = v_i + gravity_.cast<T>() * dt + q_i * dv;
+    }
+    if (q_t) {
+      const Vec3 rot_corr = dR_dbg_.cast<T>() * dbg;
+      T aa[3] = {rot_corr[0], rot_corr[1], rot_corr[2]}, wxyz[4];
+      ceres::AngleAxisToQuaternion(aa, wxyz);
+      *q_t = q_i * (delta_R_.cast<T>() * Eigen::Quaternion<T>(wxyz[0], wxyz[1], wxyz[2], wxyz[3]));
+    }
+  }
+
+ private:
+  double dt_;
+  Eigen::Quaterniond delta_R_;
+  Eigen::Vector3d delta_v_, delta_p_;
+  Eigen::Matrix3d dR_dbg_, dv_dbg_, dv_dba_, dp_dbg_, dp_dba_;
+  Eigen::Vector3d bg0_, ba0_, gravity_;
+};
 
 // Reprojection of a world point into a camera of the rig. `observed` is the undistorted
 // normalised image point (x/z, y/z); the residual is in pixels (scaled by focal_px / sigma_px).

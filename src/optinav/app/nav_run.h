@@ -1,0 +1,57 @@
+// The run behind `optinav nav`: reads a EuRoC dataset with a nadir camera (mav0/cam2), an IMU and
+// optionally a barometer (mav0/baro0), runs nav::MapAidedNavigator against a map database, and
+// writes the trajectory (TUM, ENU about the map's centre), a WGS84 csv with each pose's 1-sigma
+// uncertainty, a GeoJSON line and a statistics JSON (fixes, timing and, when the dataset carries
+// simulator ground truth with its ENU origin, the global error: no alignment). Files are written
+// atomically after the run.
+#pragma once
+
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "optinav/nav/map_aided_nav.h"
+
+namespace optinav::app {
+
+struct NavRunSettings {
+  std::string dataset;   // sequence folder (holding mav0/)
+  std::string map_path;  // map database (required unless no_map)
+  bool no_map = false;   // IMU + baro + odometry only (needs nav.start)
+  std::string out;       // TUM trajectory (required)
+  std::string stats_path, wgs84_out, geojson_out;  // optional (empty: none)
+  nav::NavOptions nav;
+  maploc::LocateOptions locate;
+  size_t max_frames = 0;  // 0: all nadir frames
+  // Empty when valid, else a message that starts with the flag at fault.
+  std::string Check() const;
+};
+
+// Global error against the dataset's ground truth (sim datasets: ENU origin in
+// sim_complete.json), over the estimated poses.
+struct NavError {
+  size_t poses = 0;
+  double rmse_m = 0, max_m = 0, final_m = 0;  // horizontal
+  double altitude_rmse_m = 0;
+};
+
+struct NavRunReport {
+  std::vector<nav::NavPose> poses;
+  std::vector<nav::FixLog> fixes;
+  nav::NavStats stats;
+  geo::LatLon origin;  // the world frame's ENU origin (the map's centre)
+  std::optional<NavError> error;
+  std::vector<double> errors_m;  // per pose, when `error`
+  double wall_s = 0, duration_s = 0;
+  nlohmann::json ToJson() const;
+};
+
+// Throws Error on invalid settings, bad input (naming the file), and when no pose was estimated.
+// `progress(done, total)` after each nadir frame.
+NavRunReport RunNav(const NavRunSettings& settings,
+                    const std::function<void(size_t, size_t)>& progress = {});
+
+}  // namespace optinav::app

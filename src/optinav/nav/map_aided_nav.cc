@@ -1,0 +1,618 @@
+#include "optinav/nav/map_aided_nav.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <deque>
+
+#include <ceres/ceres.h>
+#include <opencv2/imgproc.hpp>
+#include <spdlog/spdlog.h>
+
+#include "optinav/maploc/aerial_camera.h"
+#include "optinav/nav/internal/frame_odometry.h"
+#include "optinav/util/error.h"
+#include "optinav/vio/gnss_fusion.h"
+#include "optinav/vio/internal/backend.h"
+#include "optinav/vio/internal/factors.h"
+
+namespace optinav::nav {
+
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+double Ms(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - since)
+      .count();
+}
+
+// ENU <-> NED and FLU <-> FRD.
+Eigen::Matrix3d NedFromEnu() {
+  Eigen::Matrix3d m;
+  m << 0, 1, 0, 1, 0, 0, 0, 0, -1;
+  return m;
+}
+Eigen::Matrix3d FrdFromFlu() { return Eigen::Vector3d(1, -1, -1).asDiagonal(); }
+
+// The horizontal position (and optionally the height) at the factor's time, minus the fix.
+class PositionFunctor {
+ public:
+  PositionFunctor(const vio::ImuPreintegration& pre, const Eigen::Vector3d& gravity,
+                  const Eigen::Vector3d& fix, double sigma_m, double altitude_sigma_m)
+      : predict_(pre, gravity),
+        fix_(fix),
+        inv_sigma_(1.0 / sigma_m),
+        inv_altitude_sigma_(altitude_sigma_m > 0 ? 1.0 / altitude_sigma_m : 0.0) {}
+  template <typename T>
+  bool operator()(const T* pose, const T* sb, T* residuals) const {
+    Eigen::Matrix<T, 3, 1> p;
+    predict_(pose, sb, &p, nullptr, nullptr);
+    residuals[0] = (p[0] - T(fix_[0])) * T(inv_sigma_);
+    residuals[1] = (p[1] - T(fix_[1])) * T(inv_sigma_);
+    residuals[2] = (p[2] - T(fix_[2])) * T(inv_altitude_sigma_);
+    return true;
+  }
+
+ private:
+  vio::TimedStatePredictor predict_;
+  Eigen::Vector3d fix_;
+  double inv_sigma_, inv_altitude_sigma_;
+};
+
+class PositionFactor : public vio::TimedFactor {
+ public:
+  PositionFactor(int64_t t_ns, const Eigen::Vector3d& fix, double sigma_m, double altitude_sigma_m,
+                 const ceres::LossFunction* loss)
+      : t_ns_(t_ns), fix_(fix), sigma_(sigma_m), altitude_sigma_(altitude_sigma_m), loss_(loss) {}
+  int64_t t_ns() const override { return t_ns_; }
+  ceres::CostFunction* Create(const vio::ImuPreintegration& pre, const Eigen::Vector3d& gravity,
+                              bool) const override {
+    return new ceres::AutoDiffCostFunction<PositionFunctor, 3, vio::kPoseSize,
+                                           vio::kSpeedBiasSize>(
+        new PositionFunctor(pre, gravity, fix_, sigma_, altitude_sigma_));
+  }
+  const ceres::LossFunction* loss() const override { return loss_; }
+
+ private:
+  int64_t t_ns_;
+  Eigen::Vector3d fix_;
+  double sigma_, altitude_sigma_;
+  const ceres::LossFunction* loss_;
+};
+
+// z(t) + bias - barometric altitude.
+class BaroFunctor {
+ public:
+  BaroFunctor(const vio::ImuPreintegration& pre, const Eigen::Vector3d& gravity, double altitude,
+              double sigma)
+      : predict_(pre, gravity), altitude_(altitude), inv_sigma_(1.0 / sigma) {}
+  template <typename T>
+  bool operator()(const T* pose, const T* sb, const T* bias, T* residuals) const {
+    Eigen::Matrix<T, 3, 1> p;
+    predict_(pose, sb, &p, nullptr, nullptr);
+    residuals[0] = (p[2] + bias[0] - T(altitude_)) * T(inv_sigma_);
+    return true;
+  }
+
+ private:
+  vio::TimedStatePredictor predict_;
+  double altitude_, inv_sigma_;
+};
+
+class BaroFactor : public vio::TimedFactor {
+ public:
+  BaroFactor(const io::BaroSample& s, double sigma, int bias_block, const ceres::LossFunction* loss)
+      : sample_(s), sigma_(sigma), bias_block_(bias_block), loss_(loss) {}
+  int64_t t_ns() const override { return sample_.t_ns; }
+  ceres::CostFunction* Create(const vio::ImuPreintegration& pre, const Eigen::Vector3d& gravity,
+                              bool) const override {
+    return new ceres::AutoDiffCostFunction<BaroFunctor, 1, vio::kPoseSize, vio::kSpeedBiasSize, 1>(
+        new BaroFunctor(pre, gravity, sample_.altitude_m, sigma_));
+  }
+  const ceres::LossFunction* loss() const override { return loss_; }
+  std::vector<int> global_blocks() const override { return {bias_block_}; }
+
+ private:
+  io::BaroSample sample_;
+  double sigma_;
+  int bias_block_;
+  const ceres::LossFunction* loss_;
+};
+
+// The horizontal velocity at the factor's time in the anchor's heading frame (its x axis
+// projected on the ground) minus the odometry's: the camera sees the motion relative to the
+// vehicle's heading, so this factor observes yaw (a velocity in the world frame, made with the
+// estimated yaw, would not).
+template <typename T>
+Eigen::Matrix<T, 2, 1> InHeadingFrame(const Eigen::Quaternion<T>& world_from_body,
+                                      const Eigen::Matrix<T, 3, 1>& v_world) {
+  const Eigen::Matrix<T, 3, 1> x = world_from_body * Eigen::Matrix<T, 3, 1>(T(1), T(0), T(0));
+  const T n = ceres::sqrt(x[0] * x[0] + x[1] * x[1] + T(1e-12));
+  const T c = x[0] / n, s = x[1] / n;
+  return {c * v_world[0] + s * v_world[1], -s * v_world[0] + c * v_world[1]};
+}
+
+class VelocityFunctor {
+ public:
+  VelocityFunctor(const vio::ImuPreintegration& pre, const Eigen::Vector3d& gravity,
+                  const Eigen::Vector2d& velocity_heading, double sigma)
+      : predict_(pre, gravity), velocity_(velocity_heading), inv_sigma_(1.0 / sigma) {}
+  template <typename T>
+  bool operator()(const T* pose, const T* sb, T* residuals) const {
+    Eigen::Matrix<T, 3, 1> v;
+    predict_(pose, sb, nullptr, &v, nullptr);
+    const Eigen::Map<const Eigen::Quaternion<T>> q_i(pose + 3);
+    const Eigen::Matrix<T, 2, 1> vh = InHeadingFrame(Eigen::Quaternion<T>(q_i), v);
+    residuals[0] = (vh[0] - T(velocity_[0])) * T(inv_sigma_);
+    residuals[1] = (vh[1] - T(velocity_[1])) * T(inv_sigma_);
+    return true;
+  }
+
+ private:
+  vio::TimedStatePredictor predict_;
+  Eigen::Vector2d velocity_;
+  double inv_sigma_;
+};
+
+class VelocityFactor : public vio::TimedFactor {
+ public:
+  VelocityFactor(int64_t t_ns, const Eigen::Vector2d& velocity, double sigma,
+                 const ceres::LossFunction* loss)
+      : t_ns_(t_ns), velocity_(velocity), sigma_(sigma), loss_(loss) {}
+  int64_t t_ns() const override { return t_ns_; }
+  ceres::CostFunction* Create(const vio::ImuPreintegration& pre, const Eigen::Vector3d& gravity,
+                              bool) const override {
+    return new ceres::AutoDiffCostFunction<VelocityFunctor, 2, vio::kPoseSize,
+                                           vio::kSpeedBiasSize>(
+        new VelocityFunctor(pre, gravity, velocity_, sigma_));
+  }
+  const ceres::LossFunction* loss() const override { return loss_; }
+
+ private:
+  int64_t t_ns_;
+  Eigen::Vector2d velocity_;
+  double sigma_;
+  const ceres::LossFunction* loss_;
+};
+
+}  // namespace
+
+Eigen::Matrix3d EnuFromBodyOfAttitude(double roll_deg, double pitch_deg, double heading_deg) {
+  const Eigen::Matrix3d ned_from_frd = maploc::NedFromBody({roll_deg, pitch_deg, heading_deg});
+  return NedFromEnu().transpose() * ned_from_frd * FrdFromFlu();
+}
+
+void AttitudeOfEnuFromBody(const Eigen::Matrix3d& enu_from_body, double* roll_deg,
+                           double* pitch_deg, double* heading_deg) {
+  const maploc::Attitude a =
+      maploc::AttitudeOf(NedFromEnu() * enu_from_body * FrdFromFlu().transpose());
+  *roll_deg = a.roll_deg;
+  *pitch_deg = a.pitch_deg;
+  *heading_deg = a.yaw_deg;
+}
+
+std::string NavOptions::Check() const {
+  if (window_states < 3) return "window_states must be >= 3";
+  for (double v : {gyro_noise_density, accel_noise_density, gyro_random_walk, accel_random_walk})
+    if (!(v > 0)) return "IMU noise densities must be > 0";
+  if (!(baro_sigma_m > 0) || !(baro_bias_sigma_m > 0) || !(baro_bias_walk_m_per_sqrt_s >= 0))
+    return "barometer sigmas must be > 0 (walk >= 0)";
+  if (!(odometry_pixel_sigma > 0) || !(odometry_min_velocity_sigma > 0))
+    return "odometry sigmas must be > 0";
+  if (!(fix_rate_hz >= 0)) return "fix_rate_hz must be >= 0";
+  if (!vio::ParseGnssNorm(map_norm)) return "map_norm must be l2, huber or tukey, got " + map_norm;
+  if (!(fix_sigma_floor_m > 0) || !(fix_altitude_sigma_rel > 0))
+    return "fix sigmas must be > 0";
+  if (!(reopen_after_s > 0)) return "reopen_after_s must be > 0";
+  if (!(min_prior_radius_m > 0) || !(max_local_radius_m >= min_prior_radius_m))
+    return "need 0 < min_prior_radius_m <= max_local_radius_m";
+  if (!(init_confirm_m > 0) || !(init_velocity_sigma_m_s > 0) || !(init_tilt_sigma_deg > 0))
+    return "initialisation sigmas must be > 0";
+  if (start && !(start->position_sigma_m > 0 && start->heading_sigma_deg > 0))
+    return "start sigmas must be > 0";
+  return "";
+}
+
+struct MapAidedNavigator::Impl {
+  NavOptions options;
+  NavSensors sensors;
+  const maploc::MapDatabase* db;
+  std::unique_ptr<maploc::Locator> locator;
+  geo::LocalEnu enu;
+  vio::BackendOptions backend_options;
+  std::unique_ptr<vio::SlidingWindowBackend> backend;
+  std::unique_ptr<ceres::LossFunction> map_loss, odometry_loss;
+  FrameOdometry odometry;
+  int bias_block = -1;
+
+  std::vector<vio::TimedImuSample> imu;
+  std::deque<io::BaroSample> baro;
+  std::optional<io::BaroSample> last_baro;
+  int64_t last_frame_ns = 0;
+  bool have_frame = false;
+  Eigen::MatrixXd covariance;  // of the newest state (15x15)
+  std::optional<int64_t> last_fix_try_ns;
+  std::optional<int64_t> rejecting_since_ns;
+  double gate_scale = 1.0;
+  std::optional<FixLog> candidate;  // initialisation: a global fix waiting for confirmation
+  std::vector<FixLog> fixes;
+  NavStats stats;
+
+  Impl(const NavOptions& o, const NavSensors& s, const maploc::MapDatabase* d,
+       const maploc::LocateOptions& lo, const geo::LatLon& origin)
+      : options(o), sensors(s), db(d), enu(origin, 0.0) {
+    const std::string problem = options.Check();
+    if (!problem.empty()) throw Error("nav options: " + problem);
+    if (db && options.use_map) {
+      maploc::LocateOptions locate = lo;
+      locate.camera = sensors.camera;
+      locator = std::make_unique<maploc::Locator>(*db, locate);
+    }
+    map_loss = vio::MakeGnssLoss(*vio::ParseGnssNorm(options.map_norm),
+                                 options.map_norm_parameter);
+    odometry_loss = std::make_unique<ceres::HuberLoss>(2.0);
+    backend_options.window_keyframes = options.window_states;
+    backend_options.imu_noise = {options.gyro_noise_density, options.accel_noise_density,
+                                 options.gyro_random_walk, options.accel_random_walk};
+    backend_options.max_iterations = 10;
+  }
+
+  bool initialized() const { return backend && backend->initialized(); }
+
+  // The camera's attitude for the locator (the standard mapping-camera mount).
+  void CameraAttitude(const Eigen::Matrix3d& enu_from_body, double* roll, double* pitch,
+                      double* heading) const {
+    const Eigen::Matrix3d enu_from_cam = enu_from_body * sensors.body_from_cam.rotation.matrix();
+    const Eigen::Matrix3d ned_from_mapping_body =
+        NedFromEnu() * enu_from_cam * maploc::BodyFromCamera().transpose();
+    const maploc::Attitude a = maploc::AttitudeOf(ned_from_mapping_body);
+    *roll = a.roll_deg;
+    *pitch = a.pitch_deg;
+    *heading = a.yaw_deg;
+  }
+  // ... and the body rotation of a camera attitude.
+  Eigen::Matrix3d BodyRotation(double roll, double pitch, double heading) const {
+    const Eigen::Matrix3d enu_from_cam = NedFromEnu().transpose() *
+                                         maploc::NedFromBody({roll, pitch, heading}) *
+                                         maploc::BodyFromCamera();
+    return enu_from_cam * sensors.body_from_cam.rotation.matrix().transpose();
+  }
+
+  FixLog Locate(int64_t t_ns, const cv::Mat& gray, const maploc::Prior& prior) {
+    FixLog log;
+    log.t_ns = t_ns;
+    log.global = !prior.position.has_value();
+    const auto start = std::chrono::steady_clock::now();
+    const maploc::LocateResult r = locator->Locate(gray, prior);
+    log.locate_ms = Ms(start);
+    stats.locate_ms += log.locate_ms;
+    ++stats.fixes_tried;
+    log.found = r.localized;
+    log.reason = r.reason;
+    log.method = r.method;
+    if (r.localized) {
+      ++stats.fixes_found;
+      log.enu.head<2>() = enu.ToEnu(r.latlon, 0.0).head<2>();
+      log.enu.z() = r.method == "features" ? r.altitude_m : -1;
+      log.sigma_m = std::max(options.fix_sigma_floor_m, r.position_sigma_m);
+      fix_attitude = {r.roll_deg, r.pitch_deg, r.heading_deg};
+    }
+    return log;
+  }
+  Eigen::Vector3d fix_attitude = Eigen::Vector3d::Zero();  // of the last found fix
+
+  std::optional<double> BaroAt(int64_t t_ns) const {
+    // The latest sample at or before t (samples are consumed as they become factors).
+    std::optional<double> out;
+    if (last_baro && last_baro->t_ns <= t_ns) out = last_baro->altitude_m;
+    for (const auto& b : baro)
+      if (b.t_ns <= t_ns) out = b.altitude_m;
+    return out;
+  }
+
+  void Start(int64_t t_ns, const Eigen::Vector3d& position, const Eigen::Matrix3d& rotation,
+             const Eigen::Vector3d& velocity, double position_sigma, double yaw_sigma_rad,
+             double velocity_sigma) {
+    backend_options.prior_position_sigma_m = position_sigma;
+    backend_options.prior_yaw_sigma_rad = yaw_sigma_rad;
+    backend_options.prior_tilt_sigma_rad = options.init_tilt_sigma_deg * kDeg;
+    backend = std::make_unique<vio::SlidingWindowBackend>(backend_options, vio::RigExtrinsics{});
+    vio::StateEstimate s;
+    s.t_ns = t_ns;
+    s.world_from_body = {Eigen::Quaterniond(rotation), position};
+    s.velocity = velocity;
+    backend->Initialize(s, {}, -1, velocity_sigma, -1);
+    bias_block = backend->AddGlobalBlock(Eigen::VectorXd::Zero(1),
+                                         Eigen::VectorXd::Constant(1, options.baro_bias_sigma_m),
+                                         Eigen::VectorXd::Constant(1, options.baro_bias_walk_m_per_sqrt_s));
+    covariance = backend->NewestCovariance();
+    stats.initialized_at_ns = stats.initialized_at_ns.value_or(t_ns);
+    gate_scale = 1.0;
+    rejecting_since_ns.reset();
+    // Barometer samples before the first state cannot be used.
+    while (!baro.empty() && baro.front().t_ns < t_ns) baro.pop_front();
+    spdlog::debug("nav: initialised at t={} s, position ({:.1f}, {:.1f}, {:.1f})", t_ns * 1e-9,
+                  position.x(), position.y(), position.z());
+  }
+
+  void TryInitialize(int64_t t_ns, const cv::Mat& gray) {
+    const std::optional<double> baro_alt = BaroAt(t_ns);
+    if (options.start) {
+      const NavStart& st = *options.start;
+      Eigen::Vector3d p = enu.ToEnu(st.position, 0.0);
+      p.z() = baro_alt.value_or(0.0);
+      Start(t_ns, p, EnuFromBodyOfAttitude(0, 0, st.heading_deg), Eigen::Vector3d::Zero(),
+            st.position_sigma_m, st.heading_sigma_deg * kDeg, options.init_velocity_sigma_m_s);
+      return;
+    }
+    if (!locator) return;
+    maploc::Prior prior;
+    if (baro_alt && *baro_alt > 0) {
+      prior.altitude_m = *baro_alt;
+      prior.altitude_sigma_rel = 0.1;
+    }
+    if (candidate) {
+      const double dt = (t_ns - candidate->t_ns) * 1e-9;
+      prior.position = enu.FromEnu(Eigen::Vector3d(candidate->enu.x(), candidate->enu.y(), 0));
+      prior.radius_m = options.init_confirm_m + 40.0 * dt;
+      prior.heading_deg = fix_attitude[2];
+      prior.heading_sigma_deg = 20;
+    }
+    FixLog log = Locate(t_ns, gray, prior);
+    if (!log.found) {
+      log.reason = "initialisation: " + log.reason;
+      if (candidate && (t_ns - candidate->t_ns) * 1e-9 > 3.0) candidate.reset();
+      fixes.push_back(log);
+      return;
+    }
+    if (!candidate) {
+      log.reason = "initialisation: waiting for a confirming fix";
+      candidate = log;
+      fixes.push_back(log);
+      return;
+    }
+    const double dt = (t_ns - candidate->t_ns) * 1e-9;
+    const Eigen::Vector2d d = log.enu.head<2>() - candidate->enu.head<2>();
+    if (d.norm() > options.init_confirm_m + 40.0 * dt) {
+      log.reason = "initialisation: not confirmed, restarting";
+      candidate = log;
+      fixes.push_back(log);
+      return;
+    }
+    log.accepted = true;
+    log.reason = "initialisation";
+    ++stats.fixes_accepted;
+    Eigen::Vector3d p(log.enu.x(), log.enu.y(), log.enu.z() > 0 ? log.enu.z() : 0.0);
+    if (baro_alt && *baro_alt > 0) p.z() = *baro_alt;
+    const Eigen::Matrix3d rotation = BodyRotation(fix_attitude[0], fix_attitude[1], fix_attitude[2]);
+    Eigen::Vector3d velocity = Eigen::Vector3d::Zero();
+    double velocity_sigma = options.init_velocity_sigma_m_s;
+    if (dt > 0.1) {
+      velocity.head<2>() = d / dt;
+      velocity_sigma = std::min(velocity_sigma, std::max(3.0, 3.0 * log.sigma_m / dt));
+    }
+    Start(t_ns, p, rotation, velocity, log.sigma_m, 5 * kDeg, velocity_sigma);
+    candidate.reset();
+    fixes.push_back(log);
+  }
+
+  // The horizontal ground offset (ground point minus camera, metres) of pixel `px` seen from a
+  // camera with attitude enu_from_body at height h above the plane.
+  std::optional<Eigen::Vector2d> GroundOffset(const Eigen::Matrix3d& enu_from_body, double h,
+                                              const Eigen::Vector2d& px) const {
+    const Eigen::Vector3d ray_cam = sensors.camera.Unproject(px);
+    const Eigen::Vector3d d = enu_from_body * (sensors.body_from_cam.rotation * ray_cam);
+    if (d.z() > -0.2 * d.norm()) return std::nullopt;  // beyond ~78 deg from nadir
+    return Eigen::Vector2d((-h / d.z()) * d.head<2>());
+  }
+
+  void AddOdometry(int64_t t_ns, const cv::Mat& gray, const vio::StateEstimate& previous,
+                   const vio::NavState& predicted) {
+    const auto start = std::chrono::steady_clock::now();
+    const OdometryStep step = odometry.Track(gray);
+    stats.odometry_ms += Ms(start);
+    if (!step.ok || !options.use_odometry) return;
+    const double dt = (t_ns - previous.t_ns) * 1e-9;
+    const double h_prev = previous.world_from_body.translation.z();
+    const double h_cur = predicted.position.z();
+    if (!(h_prev > 1) || !(h_cur > 1) || !(dt > 0)) return;
+    const Eigen::Matrix3d r_prev = previous.world_from_body.rotation.toRotationMatrix();
+    const Eigen::Matrix3d r_cur = predicted.world_from_body_rotation.toRotationMatrix();
+    const double w = sensors.camera.width, hgt = sensors.camera.height;
+    Eigen::Vector2d sum = Eigen::Vector2d::Zero();
+    int n = 0;
+    for (const auto& [fx, fy] : {std::pair{0.5, 0.5}, {0.25, 0.25}, {0.75, 0.25}, {0.25, 0.75},
+                                 {0.75, 0.75}}) {
+      const cv::Vec3d c(fx * w, fy * hgt, 1.0);
+      const cv::Vec3d q = step.prev_from_cur * c;
+      if (std::abs(q[2]) < 1e-9) continue;
+      const auto cur = GroundOffset(r_cur, h_cur, {c[0], c[1]});
+      const auto prev = GroundOffset(r_prev, h_prev, {q[0] / q[2], q[1] / q[2]});
+      if (!cur || !prev) continue;
+      sum += *prev - *cur;
+      ++n;
+    }
+    if (n < 3) return;
+    // In the heading frame of the previous state (the factor's anchor): the yaw used above to
+    // map the motion into the world cancels, only the camera's measurement remains.
+    const Eigen::Vector2d velocity = InHeadingFrame(
+        previous.world_from_body.rotation, Eigen::Vector3d(sum.x() / n / dt, sum.y() / n / dt, 0));
+    const double gsd = 0.5 * (h_prev + h_cur) / sensors.camera.fx;
+    const double sigma = std::max(options.odometry_min_velocity_sigma,
+                                  options.odometry_pixel_sigma * gsd * std::sqrt(2.0) / dt);
+    backend->AddTimedFactor(std::make_unique<VelocityFactor>(
+        previous.t_ns + (t_ns - previous.t_ns) / 2, velocity, sigma, odometry_loss.get()));
+    ++stats.odometry_factors;
+  }
+
+  void TryFix(int64_t t_ns, const cv::Mat& gray, const vio::NavState& predicted,
+              const Eigen::Matrix3d& p_cov, double yaw_sigma_rad) {
+    const Eigen::Matrix2d p_xy = p_cov.topLeftCorner<2, 2>();
+    const double sigma_max = std::sqrt(std::max(0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(
+                                                         p_xy)
+                                                         .eigenvalues()
+                                                         .maxCoeff()));
+    maploc::Prior prior;
+    const double radius =
+        std::max(options.min_prior_radius_m, 3.0 * sigma_max * gate_scale + 30.0);
+    if (radius <= options.max_local_radius_m) {
+      prior.position = enu.FromEnu(Eigen::Vector3d(predicted.position.x(), predicted.position.y(), 0));
+      prior.radius_m = radius;
+    }
+    double roll, pitch, heading;
+    CameraAttitude(predicted.world_from_body_rotation.toRotationMatrix(), &roll, &pitch, &heading);
+    prior.heading_deg = heading;
+    prior.heading_sigma_deg = std::clamp(3.0 * yaw_sigma_rad / kDeg + 3.0, 5.0, 45.0);
+    prior.roll_deg = roll;
+    prior.pitch_deg = pitch;
+    prior.attitude_sigma_deg = 1.5;
+    const double h = predicted.position.z();
+    if (h > 10) {
+      prior.altitude_m = h;
+      prior.altitude_sigma_rel = std::clamp(3.0 * std::sqrt(p_cov(2, 2)) / h, 0.05, 0.3);
+    }
+    FixLog log = Locate(t_ns, gray, prior);
+    if (log.found) {
+      const Eigen::Vector2d e = log.enu.head<2>() - predicted.position.head<2>();
+      const Eigen::Matrix2d s = p_xy + log.sigma_m * log.sigma_m * Eigen::Matrix2d::Identity();
+      log.innovation_m = e.norm();
+      log.chi2 = e.dot(s.ldlt().solve(e));
+      if (options.gate_chi2 > 0 && log.chi2 > options.gate_chi2 * gate_scale * gate_scale) {
+        log.reason = "gate";
+        ++stats.fixes_rejected;
+        if (!rejecting_since_ns) rejecting_since_ns = t_ns;
+        if ((t_ns - *rejecting_since_ns) * 1e-9 > options.reopen_after_s) {
+          gate_scale *= 2.0;
+          rejecting_since_ns = t_ns;
+        }
+      } else {
+        log.accepted = true;
+        ++stats.fixes_accepted;
+        rejecting_since_ns.reset();
+        gate_scale = std::max(1.0, gate_scale / 2.0);
+        const double alt_sigma =
+            log.enu.z() > 0 ? options.fix_altitude_sigma_rel * log.enu.z() : 0.0;
+        backend->AddTimedFactor(std::make_unique<PositionFactor>(
+            t_ns, Eigen::Vector3d(log.enu.x(), log.enu.y(), std::max(0.0, log.enu.z())),
+            log.sigma_m, alt_sigma, map_loss.get()));
+      }
+    }
+    fixes.push_back(log);
+  }
+
+  NavPose PoseOfNewest() const {
+    const vio::StateEstimate s = backend->Newest();
+    NavPose pose;
+    pose.t_ns = s.t_ns;
+    pose.world_from_body = s.world_from_body;
+    pose.velocity = s.velocity;
+    pose.position_covariance = covariance.topLeftCorner<3, 3>();
+    pose.yaw_sigma_deg = std::sqrt(std::max(0.0, covariance(5, 5))) / kDeg;
+    pose.baro_bias_m = backend->GlobalBlock(bias_block)[0];
+    return pose;
+  }
+
+  std::optional<NavPose> AddFrame(int64_t t_ns, const cv::Mat& frame) {
+    if (have_frame && t_ns <= last_frame_ns)
+      throw Error("nav: frame timestamps must increase (" + std::to_string(t_ns) + " after " +
+                  std::to_string(last_frame_ns) + ")");
+    cv::Mat gray = frame;
+    if (frame.channels() == 3) cv::cvtColor(frame, gray, cv::COLOR_BGR2GRAY);
+    ++stats.frames;
+    const bool due = !last_fix_try_ns || options.fix_rate_hz <= 0 ||
+                     (t_ns - *last_fix_try_ns) * 1e-9 >= 1.0 / options.fix_rate_hz - 1e-3;
+    if (!initialized()) {
+      TryInitialize(t_ns, gray);
+      std::erase_if(imu, [&](const vio::TimedImuSample& s) { return s.t_ns < t_ns - 1'000'000'000; });
+      odometry.Reset();
+      odometry.Track(gray);
+      have_frame = true;
+      last_frame_ns = t_ns;
+      if (initialized()) last_fix_try_ns = t_ns;
+      return initialized() ? std::optional<NavPose>(PoseOfNewest()) : std::nullopt;
+    }
+    const std::vector<vio::ImuMeasurement> measurements =
+        vio::ImuMeasurementsBetween(imu, last_frame_ns, t_ns);
+    if (measurements.empty())
+      throw Error("nav: no IMU samples between frames at " + std::to_string(last_frame_ns) +
+                  " and " + std::to_string(t_ns) + " ns");
+    const vio::StateEstimate previous = backend->Newest();
+    vio::ImuPreintegration pre(previous.bias, backend_options.imu_noise);
+    for (const auto& m : measurements) pre.Integrate(m.gyro, m.accel, m.dt_s);
+    const vio::NavState predicted =
+        pre.Predict({previous.world_from_body.rotation, previous.world_from_body.translation,
+                     previous.velocity},
+                    previous.bias, backend_options.gravity);
+    // Barometer samples up to the frame.
+    while (!baro.empty() && baro.front().t_ns <= t_ns) {
+      backend->AddTimedFactor(std::make_unique<BaroFactor>(baro.front(), options.baro_sigma_m,
+                                                           bias_block, nullptr));
+      ++stats.baro_factors;
+      baro.pop_front();
+    }
+    AddOdometry(t_ns, gray, previous, predicted);
+    if (locator && due) {
+      const double dt = pre.dt_s();
+      const Eigen::Matrix3d p_cov = covariance.topLeftCorner<3, 3>() +
+                                    dt * dt * covariance.block<3, 3>(6, 6) +
+                                    Eigen::Matrix3d::Identity() * (0.5 * dt * dt);
+      TryFix(t_ns, gray, predicted, p_cov, std::sqrt(std::max(0.0, covariance(5, 5))));
+      last_fix_try_ns = t_ns;
+    }
+    const auto start = std::chrono::steady_clock::now();
+    const vio::StateEstimate estimate = backend->AddFrame(t_ns, pre, {}, true);
+    covariance = backend->NewestCovariance();
+    stats.solve_ms += Ms(start);
+    ++stats.states;
+    have_frame = true;
+    last_frame_ns = t_ns;
+    // Keep one second of IMU before the newest frame.
+    std::erase_if(imu, [&](const vio::TimedImuSample& s) { return s.t_ns < t_ns - 1'000'000'000; });
+    const double sigma_h = std::sqrt(std::max(0.0, covariance(0, 0) + covariance(1, 1)));
+    if (!estimate.world_from_body.translation.allFinite() || !estimate.velocity.allFinite() ||
+        !(sigma_h < 5000.0)) {
+      spdlog::warn("nav: estimate diverged at t={} s, re-initialising", t_ns * 1e-9);
+      backend.reset();
+      ++stats.resets;
+      return std::nullopt;
+    }
+    return PoseOfNewest();
+  }
+};
+
+MapAidedNavigator::MapAidedNavigator(const NavOptions& options, const NavSensors& sensors,
+                                     const maploc::MapDatabase* db,
+                                     const maploc::LocateOptions& locate_options,
+                                     const geo::LatLon& origin)
+    : impl_(std::make_unique<Impl>(options, sensors, db, locate_options, origin)) {}
+
+MapAidedNavigator::~MapAidedNavigator() = default;
+
+void MapAidedNavigator::AddImu(const io::ImuSample& s) {
+  if (!impl_->imu.empty() && s.t_ns <= impl_->imu.back().t_ns)
+    throw Error("nav: IMU timestamps must increase (" + std::to_string(s.t_ns) + ")");
+  if (!s.gyro_rad_s.allFinite() || !s.accel_m_s2.allFinite())
+    throw Error("nav: IMU sample at " + std::to_string(s.t_ns) + " ns is not finite");
+  impl_->imu.push_back({s.t_ns, s.gyro_rad_s, s.accel_m_s2});
+}
+
+void MapAidedNavigator::AddBaro(const io::BaroSample& s) {
+  if (impl_->last_baro && s.t_ns <= impl_->last_baro->t_ns)
+    throw Error("nav: barometer timestamps must increase (" + std::to_string(s.t_ns) + ")");
+  impl_->last_baro = s;
+  impl_->baro.push_back(s);
+  // Before initialisation only the latest few are kept (for the start altitude).
+  if (!impl_->initialized())
+    while (impl_->baro.size() > 100) impl_->baro.pop_front();
+}
+
+std::optional<NavPose> MapAidedNavigator::AddFrame(int64_t t_ns, const cv::Mat& frame) {
+  return impl_->AddFrame(t_ns, frame);
+}
+
+const std::vector<FixLog>& MapAidedNavigator::fixes() const { return impl_->fixes; }
+const NavStats& MapAidedNavigator::stats() const { return impl_->stats; }
+const geo::LocalEnu& MapAidedNavigator::enu() const { return impl_->enu; }
+
+}  // namespace optinav::nav
