@@ -13,8 +13,8 @@
 #include "optinav/nav/internal/frame_odometry.h"
 #include "optinav/util/error.h"
 #include "optinav/vio/gnss_fusion.h"
-#include "optinav/vio/internal/backend.h"
-#include "optinav/vio/internal/factors.h"
+#include "optinav/vio/backend.h"
+#include "optinav/vio/factors.h"
 
 namespace optinav::nav {
 

@@ -1,4 +1,4 @@
-#include "optinav/vio/internal/backend.h"
+#include "optinav/vio/backend.h"
 
 #include <algorithm>
 #include <cmath>

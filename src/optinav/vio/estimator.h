@@ -53,7 +53,7 @@
 #include "optinav/util/queue.h"
 #include "optinav/util/timer.h"
 #include "optinav/vio/gnss_fusion.h"
-#include "optinav/vio/internal/backend.h"
+#include "optinav/vio/backend.h"
 #include "optinav/vio/internal/frontend.h"
 #include "optinav/vio/internal/loop_closure.h"
 

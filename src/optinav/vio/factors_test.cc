@@ -1,4 +1,4 @@
-#include "optinav/vio/internal/factors.h"
+#include "optinav/vio/factors.h"
 
 #include <algorithm>
 #include <cstdio>

@@ -31,7 +31,7 @@
 
 #include <Eigen/Core>
 
-#include "optinav/vio/internal/backend.h"
+#include "optinav/vio/backend.h"
 
 namespace optinav::vio {
 

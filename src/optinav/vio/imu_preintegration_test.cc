@@ -1,4 +1,4 @@
-#include "optinav/vio/internal/imu_preintegration.h"
+#include "optinav/vio/imu_preintegration.h"
 
 #include <cmath>
 #include <cstdio>

@@ -6,7 +6,7 @@
 #include <random>
 #include <vector>
 
-#include "optinav/vio/internal/backend.h"
+#include "optinav/vio/backend.h"
 #include "optinav/vio/test_trajectory.h"
 
 namespace optinav::vio {

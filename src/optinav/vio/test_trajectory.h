@@ -5,7 +5,7 @@
 #include <cmath>
 
 #include "optinav/geometry/lie.h"
-#include "optinav/vio/internal/imu_preintegration.h"
+#include "optinav/vio/imu_preintegration.h"
 
 namespace optinav::vio {
 

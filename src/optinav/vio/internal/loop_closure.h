@@ -32,7 +32,7 @@
 #include "optinav/camera/camera.h"
 #include "optinav/geometry/lie.h"
 #include "optinav/util/timer.h"
-#include "optinav/vio/internal/backend.h"
+#include "optinav/vio/backend.h"
 
 namespace optinav::vio {
 

@@ -22,7 +22,7 @@
 #include <vector>
 
 #include "optinav/geometry/lie.h"
-#include "optinav/vio/internal/imu_preintegration.h"
+#include "optinav/vio/imu_preintegration.h"
 
 namespace optinav::vio {
 

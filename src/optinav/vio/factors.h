@@ -16,7 +16,7 @@
 #include <ceres/rotation.h>
 
 #include "optinav/geometry/lie.h"
-#include "optinav/vio/internal/imu_preintegration.h"
+#include "optinav/vio/imu_preintegration.h"
 
 namespace optinav::vio {
 

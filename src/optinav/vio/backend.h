@@ -31,8 +31,8 @@
 #include <vector>
 
 #include "optinav/geometry/lie.h"
-#include "optinav/vio/internal/factors.h"
-#include "optinav/vio/internal/imu_preintegration.h"
+#include "optinav/vio/factors.h"
+#include "optinav/vio/imu_preintegration.h"
 
 namespace optinav::vio {
 
