@@ -9,6 +9,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "optinav/geo/geo.h"
+#include "optinav/io/gnss_io.h"
 #include "optinav/io/text_parse.h"
 #include "optinav/io/trajectory_io.h"
 #include "optinav/report/geo_export.h"
@@ -23,6 +24,8 @@ std::string NavRunSettings::Check() const {
   if (out.empty()) return "--out is required";
   if (!no_map && map_path.empty()) return "--map is required (or --no-map with --start)";
   if (no_map && !nav.start) return "--no-map needs --start LAT,LON,HEADING";
+  for (const auto& [start, duration] : blank)
+    if (!(start >= 0) || !(duration > 0)) return "--blank needs START_S >= 0 and DURATION_S > 0";
   const std::string problem = nav.Check();
   if (!problem.empty()) return "--nav options: " + problem;
   return "";
@@ -102,17 +105,54 @@ NavRunReport RunNav(const NavRunSettings& st, const std::function<void(size_t, s
   nav::MapAidedNavigator navigator(options, sensors, db ? &*db : nullptr, st.locate,
                                    report.origin);
 
+  // GNSS positions into the navigator's ENU frame.
+  std::vector<std::pair<int64_t, Eigen::Vector3d>> gnss;
+  double gnss_sigma = st.gnss_sigma_m;
+  if (st.gnss) {
+    if (ds.gnss_csv.empty()) throw Error("--gnss: the dataset has no mav0/gnss0", {.file = ds.mav0_dir});
+    const io::GnssFile file = io::ReadGnssFile(ds.gnss_csv);
+    const geo::LocalEnu nav_enu(report.origin, 0.0);
+    std::optional<geo::LocalEnu> file_enu;
+    if (file.kind == io::GnssFileKind::kEnu) {
+      const auto origin = SimOrigin(st.dataset);
+      if (!origin)
+        throw Error("--gnss: an ENU GNSS file needs its origin (sim_complete.json)",
+                    {.file = ds.gnss_csv});
+      file_enu.emplace(*origin, 0.0);
+    }
+    for (const io::GnssRecord& r : file.records) {
+      Eigen::Vector3d p;
+      if (file_enu) {
+        p = nav_enu.ToEnu(file_enu->FromEnu(r.value), 0.0);
+        p.z() = r.value.z();  // height above the (flat) map plane
+      } else {
+        p = nav_enu.ToEnu(geo::LatLon{r.value.x(), r.value.y()}, 0.0);
+        p.z() = r.value.z();
+      }
+      gnss.emplace_back(r.t_ns, p);
+      if (gnss_sigma <= 0 && r.sigma_m) gnss_sigma = *r.sigma_m;
+    }
+    if (gnss_sigma <= 0) gnss_sigma = 3.0;
+  }
+
   const auto& frames = ds.cam2->images;
   const size_t total = st.max_frames > 0 ? std::min(st.max_frames, frames.size()) : frames.size();
-  size_t next_imu = 0, next_baro = 0;
+  size_t next_imu = 0, next_baro = 0, next_gnss = 0;
   for (size_t k = 0; k < total; ++k) {
     const int64_t t = frames[k].t_ns;
     // Sensors up to (and the IMU one sample past) the frame.
     while (next_imu < imu.size() && (next_imu == 0 || imu[next_imu - 1].t_ns < t))
       navigator.AddImu(imu[next_imu++]);
     while (next_baro < baro.size() && baro[next_baro].t_ns <= t) navigator.AddBaro(baro[next_baro++]);
-    const cv::Mat gray = cv::imread(frames[k].path, cv::IMREAD_GRAYSCALE);
+    while (next_gnss < gnss.size() && gnss[next_gnss].first <= t) {
+      navigator.AddGnss(gnss[next_gnss].first, gnss[next_gnss].second, gnss_sigma);
+      ++next_gnss;
+    }
+    cv::Mat gray = cv::imread(frames[k].path, cv::IMREAD_GRAYSCALE);
     if (gray.empty()) throw Error("cannot read the nadir frame", {.file = frames[k].path});
+    const double since_start = (t - frames[0].t_ns) * 1e-9;
+    for (const auto& [start, duration] : st.blank)
+      if (since_start >= start && since_start < start + duration) gray.setTo(128);
     if (const auto pose = navigator.AddFrame(t, gray)) report.poses.push_back(*pose);
     if (progress) progress(k + 1, total);
   }
@@ -144,6 +184,7 @@ NavRunReport RunNav(const NavRunSettings& st, const std::function<void(size_t, s
         const double err = (p.world_from_body.translation.head<2>() - truth.head<2>()).norm();
         const double err_alt = p.world_from_body.translation.z() - truth.z();
         report.errors_m.push_back(err);
+        report.altitude_errors_m.push_back(err_alt);
         sum2 += err * err;
         sum2_alt += err_alt * err_alt;
         e.max_m = std::max(e.max_m, err);
@@ -200,8 +241,12 @@ nlohmann::json NavRunReport::ToJson() const {
       stats.initialized_at_ns ? nlohmann::json((*stats.initialized_at_ns) * 1e-9) : nlohmann::json();
   j["fixes"] = {{"tried", stats.fixes_tried},       {"found", stats.fixes_found},
                 {"accepted", stats.fixes_accepted}, {"rejected", stats.fixes_rejected}};
-  j["factors"] = {{"odometry", stats.odometry_factors}, {"baro", stats.baro_factors}};
+  j["factors"] = {{"odometry", stats.odometry_factors},
+                  {"odometry_rejected", stats.odometry_rejected},
+                  {"baro", stats.baro_factors}};
   j["resets"] = stats.resets;
+  j["gnss"] = {{"received", stats.gnss_received}, {"accepted", stats.gnss_accepted}};
+  j["outliers"] = {{"injected", stats.outliers_injected}, {"accepted", stats.outliers_accepted}};
   j["time_ms"] = {{"locate", stats.locate_ms}, {"odometry", stats.odometry_ms},
                   {"solve", stats.solve_ms}};
   if (error) {
@@ -215,6 +260,7 @@ nlohmann::json NavRunReport::ToJson() const {
                   {"global", f.global},
                   {"found", f.found},
                   {"accepted", f.accepted},
+                  {"injected", f.injected},
                   {"method", f.method},
                   {"reason", f.reason},
                   {"x", f.enu.x()},

@@ -26,6 +26,13 @@ struct NavRunSettings {
   nav::NavOptions nav;
   maploc::LocateOptions locate;
   size_t max_frames = 0;  // 0: all nadir frames
+  // GNSS (mav0/gnss0, ENU about the simulator's origin or lat/lon/height) fused as positions
+  // with this sigma (<= 0: the file's, else 3 m). Off by default: nav is GNSS-free.
+  bool gnss = false;
+  double gnss_sigma_m = -1;
+  // Frames replaced by a blank (uniform grey) image over [start_s, start_s + duration_s) after
+  // the first frame: the map cannot be matched there (water, cloud; the gap acceptance).
+  std::vector<std::pair<double, double>> blank;
   // Empty when valid, else a message that starts with the flag at fault.
   std::string Check() const;
 };
@@ -45,6 +52,7 @@ struct NavRunReport {
   geo::LatLon origin;  // the world frame's ENU origin (the map's centre)
   std::optional<NavError> error;
   std::vector<double> errors_m;  // per pose, when `error`
+  std::vector<double> altitude_errors_m;
   double wall_s = 0, duration_s = 0;
   nlohmann::json ToJson() const;
 };

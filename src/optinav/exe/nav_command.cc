@@ -1,6 +1,7 @@
 // optinav nav: map-aided inertial navigation (IMU + nadir camera + barometer + map fixes) on a
 // EuRoC dataset with mav0/cam2. Parses the flags into app::NavRunSettings, runs app::RunNav and
 // prints its summary.
+#include <algorithm>
 #include <cstdio>
 
 #include <CLI/CLI.hpp>
@@ -48,10 +49,26 @@ int RunNav(int argc, char** argv) {
   command.add_option("--window", st.nav.window_states, "states in the sliding window")
       ->capture_default_str();
   command.add_option("--max-frames", st.max_frames, "process only the first N nadir frames (0: all)");
+  command.add_flag("--gnss", st.gnss, "also fuse GNSS positions (mav0/gnss0), gated like map fixes");
+  command.add_option("--gnss-sigma", st.gnss_sigma_m,
+                     "GNSS sigma per axis, m (default: the file's sigma column, else 3)");
+  std::vector<std::string> blank;
+  command.add_option("--blank", blank,
+                     "START_S:DURATION_S: blank the nadir frames in that window (no map match "
+                     "possible; repeatable)");
+  command.add_option("--inject-outliers", st.nav.inject_outlier_fraction,
+                     "testing: replace this fraction of the found map fixes by positions "
+                     "300-1500 m away (seeded)");
   return cli::RunCli(command, argc, argv, [&] {
     if (!start.empty()) {
       const std::vector<double> v = ParseNumbers(start, 3, "LAT,LON,HEADING", "--start");
       st.nav.start = nav::NavStart{{v[0], v[1]}, v[2]};
+    }
+    for (const std::string& b : blank) {
+      std::string text = b;
+      std::replace(text.begin(), text.end(), ':', ',');
+      const std::vector<double> v = ParseNumbers(text, 2, "START_S:DURATION_S", "--blank");
+      st.blank.emplace_back(v[0], v[1]);
     }
     cli::ThrowIfCheckFailed(st.Check());
     std::optional<ProgressBar> progress;

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <deque>
+#include <random>
 
 #include <ceres/ceres.h>
 #include <opencv2/imgproc.hpp>
@@ -236,12 +237,19 @@ struct MapAidedNavigator::Impl {
   std::optional<int64_t> rejecting_since_ns;
   double gate_scale = 1.0;
   std::optional<FixLog> candidate;  // initialisation: a global fix waiting for confirmation
+  struct Gnss {
+    int64_t t_ns;
+    Eigen::Vector3d enu;
+    double sigma;
+  };
+  std::deque<Gnss> gnss;
+  std::mt19937_64 outlier_rng;
   std::vector<FixLog> fixes;
   NavStats stats;
 
   Impl(const NavOptions& o, const NavSensors& s, const maploc::MapDatabase* d,
        const maploc::LocateOptions& lo, const geo::LatLon& origin)
-      : options(o), sensors(s), db(d), enu(origin, 0.0) {
+      : options(o), sensors(s), db(d), enu(origin, 0.0), outlier_rng(o.outlier_seed) {
     const std::string problem = options.Check();
     if (!problem.empty()) throw Error("nav options: " + problem);
     if (db && options.use_map) {
@@ -297,6 +305,16 @@ struct MapAidedNavigator::Impl {
       log.enu.z() = r.method == "features" ? r.altitude_m : -1;
       log.sigma_m = std::max(options.fix_sigma_floor_m, r.position_sigma_m);
       fix_attitude = {r.roll_deg, r.pitch_deg, r.heading_deg};
+      if (options.inject_outlier_fraction > 0 &&
+          std::uniform_real_distribution<double>(0, 1)(outlier_rng) <
+              options.inject_outlier_fraction) {
+        const double a = std::uniform_real_distribution<double>(0, 2 * M_PI)(outlier_rng);
+        const double d = std::uniform_real_distribution<double>(options.outlier_min_m,
+                                                                options.outlier_max_m)(outlier_rng);
+        log.enu.head<2>() += d * Eigen::Vector2d(std::cos(a), std::sin(a));
+        log.injected = true;
+        ++stats.outliers_injected;
+      }
     }
     return log;
   }
@@ -383,6 +401,7 @@ struct MapAidedNavigator::Impl {
     log.accepted = true;
     log.reason = "initialisation";
     ++stats.fixes_accepted;
+    if (log.injected || candidate->injected) ++stats.outliers_accepted;
     Eigen::Vector3d p(log.enu.x(), log.enu.y(), log.enu.z() > 0 ? log.enu.z() : 0.0);
     if (baro_alt && *baro_alt > 0) p.z() = *baro_alt;
     const Eigen::Matrix3d rotation = BodyRotation(fix_attitude[0], fix_attitude[1], fix_attitude[2]);
@@ -441,6 +460,19 @@ struct MapAidedNavigator::Impl {
     const double gsd = 0.5 * (h_prev + h_cur) / sensors.camera.fx;
     const double sigma = std::max(options.odometry_min_velocity_sigma,
                                   options.odometry_pixel_sigma * gsd * std::sqrt(2.0) / dt);
+    // Gate: a wrong homography (repeated texture, a blank frame's noise) must not pull the
+    // state; compared with the IMU's prediction of the same velocity.
+    const Eigen::Vector2d predicted_velocity = InHeadingFrame(
+        previous.world_from_body.rotation, Eigen::Vector3d(0.5 * (previous.velocity + predicted.velocity)));
+    const double velocity_sigma_pred = std::sqrt(
+        std::max(0.0, covariance(6, 6) + covariance(7, 7)));
+    if ((velocity - predicted_velocity).norm() >
+        3.0 * std::hypot(sigma, velocity_sigma_pred) + 3.0) {
+      ++stats.odometry_rejected;
+      return;
+    }
+    spdlog::trace("nav-odometry {} {:.4f} {:.4f} {:.3f} {}", previous.t_ns + (t_ns - previous.t_ns) / 2,
+                  velocity.x(), velocity.y(), sigma, step.inliers);
     backend->AddTimedFactor(std::make_unique<VelocityFactor>(
         previous.t_ns + (t_ns - previous.t_ns) / 2, velocity, sigma, odometry_loss.get()));
     ++stats.odometry_factors;
@@ -489,6 +521,7 @@ struct MapAidedNavigator::Impl {
       } else {
         log.accepted = true;
         ++stats.fixes_accepted;
+        if (log.injected) ++stats.outliers_accepted;
         rejecting_since_ns.reset();
         gate_scale = std::max(1.0, gate_scale / 2.0);
         const double alt_sigma =
@@ -498,6 +531,11 @@ struct MapAidedNavigator::Impl {
             log.sigma_m, alt_sigma, map_loss.get()));
       }
     }
+    spdlog::debug("nav: t={:.1f} fix {} {} {} innovation {:.1f} m chi2 {:.1f} sigma {:.1f} m, "
+                  "prior radius {:.0f} m (gate x{:.0f})",
+                  t_ns * 1e-9, log.found ? "found" : "none", log.accepted ? "accepted" : "-",
+                  log.method, log.innovation_m, log.chi2, log.sigma_m,
+                  prior.position ? prior.radius_m : -1.0, gate_scale);
     fixes.push_back(log);
   }
 
@@ -551,6 +589,22 @@ struct MapAidedNavigator::Impl {
       ++stats.baro_factors;
       baro.pop_front();
     }
+    // GNSS positions up to the frame, gated against the prediction moved to their time.
+    while (!gnss.empty() && gnss.front().t_ns <= t_ns) {
+      const Gnss g = gnss.front();
+      gnss.pop_front();
+      if (g.t_ns < previous.t_ns) continue;
+      const double dt = (t_ns - g.t_ns) * 1e-9;
+      const Eigen::Vector3d at_sample = predicted.position - dt * predicted.velocity;
+      const Eigen::Matrix3d s = covariance.topLeftCorner<3, 3>() +
+                                Eigen::Matrix3d::Identity() * (g.sigma * g.sigma + 0.25);
+      const Eigen::Vector3d e = g.enu - at_sample;
+      if (options.gnss_gate_chi2 > 0 && e.dot(s.ldlt().solve(e)) > options.gnss_gate_chi2)
+        continue;
+      backend->AddTimedFactor(
+          std::make_unique<PositionFactor>(g.t_ns, g.enu, g.sigma, g.sigma, map_loss.get()));
+      ++stats.gnss_accepted;
+    }
     AddOdometry(t_ns, gray, previous, predicted);
     if (locator && due) {
       const double dt = pre.dt_s();
@@ -572,7 +626,9 @@ struct MapAidedNavigator::Impl {
     const double sigma_h = std::sqrt(std::max(0.0, covariance(0, 0) + covariance(1, 1)));
     if (!estimate.world_from_body.translation.allFinite() || !estimate.velocity.allFinite() ||
         !(sigma_h < 5000.0)) {
-      spdlog::warn("nav: estimate diverged at t={} s, re-initialising", t_ns * 1e-9);
+      spdlog::warn("nav: estimate diverged at t={} s (horizontal sigma {} m, speed {} m/s), "
+                   "re-initialising",
+                   t_ns * 1e-9, sigma_h, estimate.velocity.norm());
       backend.reset();
       ++stats.resets;
       return std::nullopt;
@@ -605,6 +661,17 @@ void MapAidedNavigator::AddBaro(const io::BaroSample& s) {
   // Before initialisation only the latest few are kept (for the start altitude).
   if (!impl_->initialized())
     while (impl_->baro.size() > 100) impl_->baro.pop_front();
+}
+
+void MapAidedNavigator::AddGnss(int64_t t_ns, const Eigen::Vector3d& enu, double sigma_m) {
+  if (!impl_->gnss.empty() && t_ns <= impl_->gnss.back().t_ns)
+    throw Error("nav: GNSS timestamps must increase (" + std::to_string(t_ns) + ")");
+  if (!enu.allFinite() || !(sigma_m > 0))
+    throw Error("nav: GNSS sample at " + std::to_string(t_ns) + " ns is not finite");
+  ++impl_->stats.gnss_received;
+  impl_->gnss.push_back({t_ns, enu, sigma_m});
+  if (!impl_->initialized())
+    while (impl_->gnss.size() > 100) impl_->gnss.pop_front();
 }
 
 std::optional<NavPose> MapAidedNavigator::AddFrame(int64_t t_ns, const cv::Mat& frame) {

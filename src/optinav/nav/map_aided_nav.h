@@ -78,6 +78,14 @@ struct NavOptions {
   // one within this distance plus 40 m/s times the time between them.
   double init_confirm_m = 60;
   std::optional<NavStart> start;  // initialise from this instead
+  // GNSS positions (AddGnss), gated like map fixes (optional: GNSS-free is the point).
+  double gnss_gate_chi2 = 16.3;  // 3 DoF, 99.9 %
+  // Testing and benchmarks (the robustness acceptance): this fraction of the found map fixes is
+  // replaced by a wrong position between outlier_min_m and outlier_max_m away in a random
+  // direction, seeded (what a repetitive or changed landscape can make the locator return).
+  double inject_outlier_fraction = 0;
+  double outlier_min_m = 300, outlier_max_m = 1500;
+  uint64_t outlier_seed = 1;
   double init_velocity_sigma_m_s = 30;
   double init_tilt_sigma_deg = 3;
   std::string Check() const;  // "" when valid, else names the field
@@ -104,6 +112,7 @@ struct FixLog {
   bool global = false;      // searched without a prior
   bool found = false;       // the locator returned a position
   bool accepted = false;    // and it entered the estimate
+  bool injected = false;    // a wrong position put in place of the fix (testing)
   std::string method;       // features | orientation-correlation
   std::string reason;       // the locator's reason, or why it was rejected
   Eigen::Vector3d enu = Eigen::Vector3d::Zero();  // the fix (z: its altitude when estimated)
@@ -116,7 +125,9 @@ struct FixLog {
 struct NavStats {
   size_t frames = 0, states = 0;
   size_t fixes_tried = 0, fixes_found = 0, fixes_accepted = 0, fixes_rejected = 0;
-  size_t odometry_factors = 0, baro_factors = 0;
+  size_t odometry_factors = 0, odometry_rejected = 0, baro_factors = 0;
+  size_t gnss_received = 0, gnss_accepted = 0;
+  size_t outliers_injected = 0, outliers_accepted = 0;  // inject_outlier_fraction
   size_t resets = 0;
   std::optional<int64_t> initialized_at_ns;
   double locate_ms = 0, odometry_ms = 0, solve_ms = 0;  // totals
@@ -134,6 +145,8 @@ class MapAidedNavigator {
   // Sensor samples in time order, before the frame that follows them.
   void AddImu(const io::ImuSample& sample);
   void AddBaro(const io::BaroSample& sample);
+  // A GNSS position (world ENU, metres) with its sigma per axis.
+  void AddGnss(int64_t t_ns, const Eigen::Vector3d& enu, double sigma_m);
   // A nadir frame (8-bit grey or BGR). Returns the estimate at its time once initialised.
   std::optional<NavPose> AddFrame(int64_t t_ns, const cv::Mat& frame);
 

@@ -245,8 +245,13 @@ using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::R
 
 // H = J^T J, b = J^T r0 -> (J, r0) of a prior (eigen-decomposition; null directions dropped).
 void FactorInformation(const Eigen::MatrixXd& H, const Eigen::VectorXd& b, LinearPrior* prior) {
+  // On the Jacobi-scaled matrix D H D (D = diag(H)^-1/2), as in Marginalize: the threshold that
+  // separates null directions must not drop information that is only small in its units.
   const Eigen::Index n = H.rows();
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(0.5 * (H + H.transpose()));
+  const Eigen::MatrixXd hs = 0.5 * (H + H.transpose());
+  Eigen::VectorXd d(n);
+  for (Eigen::Index i = 0; i < n; ++i) d[i] = hs(i, i) > 0 ? 1.0 / std::sqrt(hs(i, i)) : 1.0;
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(d.asDiagonal() * hs * d.asDiagonal());
   const Eigen::VectorXd l = eig.eigenvalues();
   const double max_l = std::max(l.maxCoeff(), 1e-12);
   Eigen::VectorXd sqrt_l(n), inv_sqrt_l(n);
@@ -255,8 +260,9 @@ void FactorInformation(const Eigen::MatrixXd& H, const Eigen::VectorXd& b, Linea
     sqrt_l[i] = keep ? std::sqrt(l[i]) : 0.0;
     inv_sqrt_l[i] = keep ? 1.0 / std::sqrt(l[i]) : 0.0;
   }
-  prior->J = sqrt_l.asDiagonal() * eig.eigenvectors().transpose();
-  prior->r0 = inv_sqrt_l.asDiagonal() * eig.eigenvectors().transpose() * b;
+  // H = D^-1 V L V^T D^-1: J = L^1/2 V^T D^-1, r0 = L^-1/2 V^T D b (J^T r0 = b).
+  prior->J = sqrt_l.asDiagonal() * eig.eigenvectors().transpose() * d.cwiseInverse().asDiagonal();
+  prior->r0 = inv_sqrt_l.asDiagonal() * eig.eigenvectors().transpose() * (d.asDiagonal() * b);
 }
 
 }  // namespace
@@ -363,17 +369,23 @@ LinearPrior Marginalize(const std::vector<const ResidualSpec*>& residuals,
   }
 
   // Schur complement on the marginalised part (pseudo-inverse: gauge directions of a landmark
-  // seen once are rank-deficient).
+  // seen once are rank-deficient). The eigenvalue threshold is applied to the Jacobi-scaled
+  // matrix D Hmm D (D = diag(Hmm)^-1/2): the blocks mix units whose information differs by 15
+  // orders of magnitude (a bias random walk over 0.2 s against a position known to 15 m), and an
+  // unscaled relative threshold would take the weak position directions for gauge directions,
+  // dropping their Schur term and leaving an overconfident prior.
   const int r_dim = n - m_dim;
   const Eigen::MatrixXd Hmm =
       0.5 * (H.topLeftCorner(m_dim, m_dim) + H.topLeftCorner(m_dim, m_dim).transpose());
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig_mm(Hmm);
+  Eigen::VectorXd d(m_dim);
+  for (int i = 0; i < m_dim; ++i) d[i] = Hmm(i, i) > 0 ? 1.0 / std::sqrt(Hmm(i, i)) : 1.0;
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig_mm(d.asDiagonal() * Hmm * d.asDiagonal());
   const Eigen::VectorXd lm = eig_mm.eigenvalues();
   const double max_lm = lm.size() ? std::max(lm.maxCoeff(), 1e-12) : 1.0;
   Eigen::VectorXd inv_lm(lm.size());
   for (int i = 0; i < lm.size(); ++i) inv_lm[i] = lm[i] > 1e-10 * max_lm ? 1.0 / lm[i] : 0.0;
-  const Eigen::MatrixXd Hmm_inv =
-      eig_mm.eigenvectors() * inv_lm.asDiagonal() * eig_mm.eigenvectors().transpose();
+  const Eigen::MatrixXd Hmm_inv = d.asDiagonal() * eig_mm.eigenvectors() * inv_lm.asDiagonal() *
+                                  eig_mm.eigenvectors().transpose() * d.asDiagonal();
   const Eigen::MatrixXd Hrm = H.bottomLeftCorner(r_dim, m_dim);
   Eigen::MatrixXd Hs = H.bottomRightCorner(r_dim, r_dim) - Hrm * Hmm_inv * Hrm.transpose();
   Hs = 0.5 * (Hs + Hs.transpose());
