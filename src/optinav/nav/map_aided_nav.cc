@@ -561,13 +561,17 @@ struct MapAidedNavigator::Impl {
     const bool due = !last_fix_try_ns || options.fix_rate_hz <= 0 ||
                      (t_ns - *last_fix_try_ns) * 1e-9 >= 1.0 / options.fix_rate_hz - 1e-3;
     if (!initialized()) {
-      TryInitialize(t_ns, gray);
+      // Global searches at the fix rate (each costs about a second); the confirming local search
+      // of a candidate on the next frame.
+      if (due || candidate || options.start) {
+        TryInitialize(t_ns, gray);
+        last_fix_try_ns = t_ns;
+      }
       std::erase_if(imu, [&](const vio::TimedImuSample& s) { return s.t_ns < t_ns - 1'000'000'000; });
       odometry.Reset();
       odometry.Track(gray);
       have_frame = true;
       last_frame_ns = t_ns;
-      if (initialized()) last_fix_try_ns = t_ns;
       return initialized() ? std::optional<NavPose>(PoseOfNewest()) : std::nullopt;
     }
     const std::vector<vio::ImuMeasurement> measurements =

@@ -1,0 +1,160 @@
+#include "optinav/app/nav_run.h"
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+#include <gtest/gtest.h>
+
+#include "optinav/io/text_parse.h"
+#include "optinav/io/trajectory_io.h"
+#include "optinav/maploc/map_db.h"
+#include "optinav/sim/simulation.h"
+#include "optinav/util/error.h"
+#include "optinav/util/testing.h"
+
+namespace optinav::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string Naip(const std::string& date) {
+  return (testing::SharedDataDir() / "geo" / "naip" / ("naip_" + date + ".tif")).string();
+}
+
+// One short seeded flight over NAIP 2017 (450-520 m, ~20 m/s, a turn and a climb) with the
+// NAIP 2009 map of issue 20, shared by the tests of this file.
+class NavRunTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new fs::path(testing::MakeTempDir("nav_run"));
+    const std::string waypoints = (*dir_ / "flight.txt").string();
+    io::WriteFileAtomically(waypoints,
+                            "-400, -300, 450\n-150, -250, 470\n50, -100, 500\n100, 150, 520\n"
+                            "-50, 350, 500\n");
+    sim::SimulationOptions s;
+    s.world.kind = sim::WorldKind::kOrtho;
+    s.world.ortho_path = Naip("20170827");
+    s.route = "drone:" + waypoints;
+    s.speed_m_s = 20;
+    s.scale = 0.1;
+    s.seed = 7;
+    s.out_dir = (*dir_ / "flight").string();
+    s.nadir.enabled = true;
+    s.baro.enabled = true;
+    sim::RunSimulation(s);
+    maploc::MapBuildOptions mb;
+    mb.frame_width = mb.frame_height = 256;
+    mb.hfov_deg = 90;
+    mb.altitude_m = 640;
+    maploc::BuildMapDatabase(Naip("20090818"), mb, (*dir_ / "map.db").string());
+  }
+  static void TearDownTestSuite() {
+    fs::remove_all(*dir_);
+    delete dir_;
+  }
+  static NavRunSettings Settings(const std::string& name) {
+    NavRunSettings st;
+    st.dataset = (*dir_ / "flight").string();
+    st.map_path = (*dir_ / "map.db").string();
+    st.out = (*dir_ / (name + ".tum")).string();
+    st.stats_path = (*dir_ / (name + ".json")).string();
+    st.wgs84_out = (*dir_ / (name + ".csv")).string();
+    st.geojson_out = (*dir_ / (name + ".geojson")).string();
+    return st;
+  }
+  inline static fs::path* dir_ = nullptr;
+};
+
+// The flight's true start (position within metres, heading within degrees).
+nav::NavStart StartOf(const std::string& dataset) {
+  const Trajectory gt = io::ReadTrajectory(
+      (fs::path(dataset) / "mav0" / "state_groundtruth_estimate0" / "data.csv").string());
+  std::ifstream in(fs::path(dataset) / "sim_complete.json");
+  const auto j = nlohmann::json::parse(in);
+  const geo::LocalEnu enu(geo::LatLon{j["gnss_origin"][0], j["gnss_origin"][1]}, 0.0);
+  double roll, pitch, heading;
+  nav::AttitudeOfEnuFromBody(gt.rotations.front(), &roll, &pitch, &heading);
+  return {enu.FromEnu(gt.positions.front()), heading, 5.0, 3.0};
+}
+
+TEST_F(NavRunTest, MapFixesHoldTheFlight) {
+  // From the given start the estimate follows the flight on map fixes + IMU + baro + odometry
+  // (the global initialisation is measured by `optinav bench nav`: about a second per try).
+  NavRunSettings st = Settings("map");
+  st.nav.start = StartOf(st.dataset);
+  const NavRunReport r = RunNav(st);
+  ASSERT_TRUE(r.error.has_value());
+  std::printf("nav, %zu poses over %.1f s: RMSE %.2f m (< 25), max %.2f m (< 50), altitude RMSE "
+              "%.2f m (< 4); fixes %zu tried, %zu accepted; %.1fx real time\n",
+              r.poses.size(), r.duration_s, r.error->rmse_m,
+              r.error->max_m, r.error->altitude_rmse_m, r.stats.fixes_tried,
+              r.stats.fixes_accepted, r.duration_s / r.wall_s);
+  EXPECT_LT(r.error->rmse_m, 25.0);
+  EXPECT_LT(r.error->max_m, 50.0);
+  EXPECT_LT(r.error->altitude_rmse_m, 4.0);
+  EXPECT_EQ(r.stats.resets, 0u);
+  EXPECT_GE(r.stats.fixes_accepted, 15u);
+  // Outputs: TUM with one pose per estimate, the WGS84 csv with sigmas, GeoJSON, statistics.
+  EXPECT_EQ(io::ReadTrajectory(st.out).size(), r.poses.size());
+  std::ifstream csv(st.wgs84_out);
+  std::string line;
+  size_t rows = 0;
+  while (std::getline(csv, line))
+    if (!line.empty() && line[0] != '#') ++rows;
+  EXPECT_EQ(rows, r.poses.size());
+  EXPECT_TRUE(fs::exists(st.geojson_out));
+  std::ifstream stats(st.stats_path);
+  const auto j = nlohmann::json::parse(stats);
+  EXPECT_NEAR(j["error"]["rmse_m"].get<double>(), r.error->rmse_m, 1e-9);
+  // The per-pose sigma is an uncertainty, not a constant: finite, positive, metres to tens.
+  for (const nav::NavPose& p : r.poses) {
+    const double s = std::sqrt(p.position_covariance(0, 0));
+    EXPECT_TRUE(std::isfinite(s) && s > 0.1 && s < 200) << s;
+  }
+}
+
+TEST_F(NavRunTest, WrongFixesAreRejected) {
+  // 30 % of the found fixes moved 300-1500 m away: none may enter, and the error stays close to
+  // the clean run's. From a given start (the global search is the test above).
+  NavRunSettings clean = Settings("clean");
+  NavRunSettings bad = Settings("outliers");
+  clean.nav.start = bad.nav.start = StartOf(clean.dataset);
+  bad.nav.inject_outlier_fraction = 0.3;
+  const NavRunReport a = RunNav(clean), b = RunNav(bad);
+  ASSERT_TRUE(a.error && b.error);
+  std::printf("wrong fixes: %zu injected, %zu accepted (0); RMSE %.2f m vs %.2f m clean "
+              "(<= 1.2x + 1 m)\n",
+              b.stats.outliers_injected, b.stats.outliers_accepted, b.error->rmse_m,
+              a.error->rmse_m);
+  EXPECT_GE(b.stats.outliers_injected, 5u);
+  EXPECT_EQ(b.stats.outliers_accepted, 0u);
+  EXPECT_LE(b.error->rmse_m, 1.2 * a.error->rmse_m + 1.0);
+}
+
+TEST_F(NavRunTest, BadInputIsNamed) {
+  NavRunSettings st = Settings("bad");
+  st.no_map = true;
+  EXPECT_NE(st.Check().find("--start"), std::string::npos);
+  st = Settings("bad");
+  st.blank.emplace_back(-1, 10);
+  EXPECT_NE(st.Check().find("--blank"), std::string::npos);
+  // A dataset without a nadir camera.
+  const fs::path empty = *dir_ / "no_cam2";
+  fs::create_directories(empty / "mav0" / "imu0");
+  fs::copy(fs::path(Settings("x").dataset) / "mav0" / "imu0", empty / "mav0" / "imu0",
+           fs::copy_options::recursive | fs::copy_options::overwrite_existing);
+  st = Settings("bad");
+  st.dataset = empty.string();
+  try {
+    RunNav(st);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("cam2"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(st.out));
+}
+
+}  // namespace
+}  // namespace optinav::app
