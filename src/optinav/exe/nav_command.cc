@@ -49,6 +49,9 @@ int RunNav(int argc, char** argv) {
   command.add_option("--fix-rate", st.nav.fix_rate_hz, "map fixes tried per second (0: every frame)")
       ->capture_default_str();
   command.add_flag("!--no-odometry", st.nav.use_odometry, "no frame-to-frame velocity factors");
+  command.add_option("--odometry-sigma-px", st.nav.odometry_pixel_sigma,
+                     "frame-to-frame homography error (px, 1 sigma) behind the velocity factors")
+      ->capture_default_str();
   command.add_option("--window", st.nav.window_states, "states in the sliding window")
       ->capture_default_str();
   command.add_option("--max-frames", st.max_frames, "process only the first N nadir frames (0: all)");

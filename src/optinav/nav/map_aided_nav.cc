@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <array>
 #include <deque>
 #include <random>
 
@@ -121,58 +122,69 @@ class BaroFactor : public vio::TimedFactor {
   const ceres::LossFunction* loss_;
 };
 
-// The horizontal velocity at the factor's time in the anchor's heading frame (its x axis
-// projected on the ground) minus the odometry's: the camera sees the motion relative to the
-// vehicle's heading, so this factor observes yaw (a velocity in the world frame, made with the
-// estimated yaw, would not).
-template <typename T>
-Eigen::Matrix<T, 2, 1> InHeadingFrame(const Eigen::Quaternion<T>& world_from_body,
-                                      const Eigen::Matrix<T, 3, 1>& v_world) {
-  const Eigen::Matrix<T, 3, 1> x = world_from_body * Eigen::Matrix<T, 3, 1>(T(1), T(0), T(0));
-  const T n = ceres::sqrt(x[0] * x[0] + x[1] * x[1] + T(1e-12));
-  const T c = x[0] / n, s = x[1] / n;
-  return {c * v_world[0] + s * v_world[1], -s * v_world[0] + c * v_world[1]};
-}
+// The plane-induced homography between consecutive nadir frames as a relative-pose factor.
+// For each of a few pixels c of the current frame and its match H c in the previous one, the
+// horizontal offset from the camera to the ground point (the ray through the pixel, rotated by
+// the state's attitude, scaled to the plane by the state's height) gives
+//   p_cur - p_prev = offset_prev(H c) - offset_cur(c),
+// with both states' attitudes and heights inside the residual: a tilt error changes the
+// predicted displacement, so the solver sees it (a displacement precomputed with the predicted
+// attitude would pull the tilt towards its own error). The factor is anchored at the previous
+// state; the current one is reached through the IMU preintegrated to (just before) its time.
+constexpr int kOdometryPoints = 5;
 
-class VelocityFunctor {
+class DisplacementFunctor {
  public:
-  VelocityFunctor(const vio::ImuPreintegration& pre, const Eigen::Vector3d& gravity,
-                  const Eigen::Vector2d& velocity_heading, double sigma)
-      : predict_(pre, gravity), velocity_(velocity_heading), inv_sigma_(1.0 / sigma) {}
+  DisplacementFunctor(const vio::ImuPreintegration& pre, const Eigen::Vector3d& gravity,
+                      const std::array<Eigen::Vector3d, kOdometryPoints>& rays_prev,
+                      const std::array<Eigen::Vector3d, kOdometryPoints>& rays_cur, double sigma)
+      : predict_(pre, gravity), rays_prev_(rays_prev), rays_cur_(rays_cur), inv_sigma_(1.0 / sigma) {}
   template <typename T>
   bool operator()(const T* pose, const T* sb, T* residuals) const {
-    Eigen::Matrix<T, 3, 1> v;
-    predict_(pose, sb, nullptr, &v, nullptr);
-    const Eigen::Map<const Eigen::Quaternion<T>> q_i(pose + 3);
-    const Eigen::Matrix<T, 2, 1> vh = InHeadingFrame(Eigen::Quaternion<T>(q_i), v);
-    residuals[0] = (vh[0] - T(velocity_[0])) * T(inv_sigma_);
-    residuals[1] = (vh[1] - T(velocity_[1])) * T(inv_sigma_);
+    using Vec3 = Eigen::Matrix<T, 3, 1>;
+    const Eigen::Map<const Vec3> p_prev(pose);
+    const Eigen::Quaternion<T> q_prev = Eigen::Map<const Eigen::Quaternion<T>>(pose + 3);
+    Vec3 p_cur;
+    Eigen::Quaternion<T> q_cur;
+    predict_(pose, sb, &p_cur, nullptr, &q_cur);
+    T sx(0), sy(0);
+    for (int k = 0; k < kOdometryPoints; ++k) {
+      const Vec3 d_prev = q_prev * rays_prev_[k].cast<T>();
+      const Vec3 d_cur = q_cur * rays_cur_[k].cast<T>();
+      // offset = -h d.xy / d.z (d.z < 0 looking down)
+      sx += -p_prev[2] * d_prev[0] / d_prev[2] + p_cur[2] * d_cur[0] / d_cur[2];
+      sy += -p_prev[2] * d_prev[1] / d_prev[2] + p_cur[2] * d_cur[1] / d_cur[2];
+    }
+    const T n(kOdometryPoints);
+    residuals[0] = (sx / n - (p_cur[0] - p_prev[0])) * T(inv_sigma_);
+    residuals[1] = (sy / n - (p_cur[1] - p_prev[1])) * T(inv_sigma_);
     return true;
   }
 
  private:
   vio::TimedStatePredictor predict_;
-  Eigen::Vector2d velocity_;
+  std::array<Eigen::Vector3d, kOdometryPoints> rays_prev_, rays_cur_;  // in the body frame
   double inv_sigma_;
 };
 
-class VelocityFactor : public vio::TimedFactor {
+class DisplacementFactor : public vio::TimedFactor {
  public:
-  VelocityFactor(int64_t t_ns, const Eigen::Vector2d& velocity, double sigma,
-                 const ceres::LossFunction* loss)
-      : t_ns_(t_ns), velocity_(velocity), sigma_(sigma), loss_(loss) {}
+  DisplacementFactor(int64_t t_ns, const std::array<Eigen::Vector3d, kOdometryPoints>& rays_prev,
+                     const std::array<Eigen::Vector3d, kOdometryPoints>& rays_cur, double sigma,
+                     const ceres::LossFunction* loss)
+      : t_ns_(t_ns), rays_prev_(rays_prev), rays_cur_(rays_cur), sigma_(sigma), loss_(loss) {}
   int64_t t_ns() const override { return t_ns_; }
   ceres::CostFunction* Create(const vio::ImuPreintegration& pre, const Eigen::Vector3d& gravity,
                               bool) const override {
-    return new ceres::AutoDiffCostFunction<VelocityFunctor, 2, vio::kPoseSize,
+    return new ceres::AutoDiffCostFunction<DisplacementFunctor, 2, vio::kPoseSize,
                                            vio::kSpeedBiasSize>(
-        new VelocityFunctor(pre, gravity, velocity_, sigma_));
+        new DisplacementFunctor(pre, gravity, rays_prev_, rays_cur_, sigma_));
   }
   const ceres::LossFunction* loss() const override { return loss_; }
 
  private:
   int64_t t_ns_;
-  Eigen::Vector2d velocity_;
+  std::array<Eigen::Vector3d, kOdometryPoints> rays_prev_, rays_cur_;
   double sigma_;
   const ceres::LossFunction* loss_;
 };
@@ -436,45 +448,48 @@ struct MapAidedNavigator::Impl {
     const double h_prev = previous.world_from_body.translation.z();
     const double h_cur = predicted.position.z();
     if (!(h_prev > 1) || !(h_cur > 1) || !(dt > 0)) return;
+    spdlog::trace("nav-homography {} {} {} {} {} {} {} {} {} {} {}", previous.t_ns, t_ns,
+                  step.prev_from_cur(0, 0), step.prev_from_cur(0, 1), step.prev_from_cur(0, 2),
+                  step.prev_from_cur(1, 0), step.prev_from_cur(1, 1), step.prev_from_cur(1, 2),
+                  step.prev_from_cur(2, 0), step.prev_from_cur(2, 1), step.prev_from_cur(2, 2));
     const Eigen::Matrix3d r_prev = previous.world_from_body.rotation.toRotationMatrix();
     const Eigen::Matrix3d r_cur = predicted.world_from_body_rotation.toRotationMatrix();
+    const Eigen::Matrix3d body_from_cam = sensors.body_from_cam.rotation.toRotationMatrix();
     const double w = sensors.camera.width, hgt = sensors.camera.height;
+    std::array<Eigen::Vector3d, kOdometryPoints> rays_prev, rays_cur;
     Eigen::Vector2d sum = Eigen::Vector2d::Zero();
     int n = 0;
     for (const auto& [fx, fy] : {std::pair{0.5, 0.5}, {0.25, 0.25}, {0.75, 0.25}, {0.25, 0.75},
                                  {0.75, 0.75}}) {
       const cv::Vec3d c(fx * w, fy * hgt, 1.0);
       const cv::Vec3d q = step.prev_from_cur * c;
-      if (std::abs(q[2]) < 1e-9) continue;
+      if (std::abs(q[2]) < 1e-9) return;
+      const Eigen::Vector2d q_px(q[0] / q[2], q[1] / q[2]);
       const auto cur = GroundOffset(r_cur, h_cur, {c[0], c[1]});
-      const auto prev = GroundOffset(r_prev, h_prev, {q[0] / q[2], q[1] / q[2]});
-      if (!cur || !prev) continue;
+      const auto prev = GroundOffset(r_prev, h_prev, q_px);
+      if (!cur || !prev) return;
+      rays_cur[n] = body_from_cam * sensors.camera.Unproject({c[0], c[1]});
+      rays_prev[n] = body_from_cam * sensors.camera.Unproject(q_px);
       sum += *prev - *cur;
       ++n;
     }
-    if (n < 3) return;
-    // In the heading frame of the previous state (the factor's anchor): the yaw used above to
-    // map the motion into the world cancels, only the camera's measurement remains.
-    const Eigen::Vector2d velocity = InHeadingFrame(
-        previous.world_from_body.rotation, Eigen::Vector3d(sum.x() / n / dt, sum.y() / n / dt, 0));
     const double gsd = 0.5 * (h_prev + h_cur) / sensors.camera.fx;
-    const double sigma = std::max(options.odometry_min_velocity_sigma,
-                                  options.odometry_pixel_sigma * gsd * std::sqrt(2.0) / dt);
+    const double sigma = std::max(options.odometry_min_velocity_sigma * dt,
+                                  options.odometry_pixel_sigma * gsd * std::sqrt(2.0));
     // Gate: a wrong homography (repeated texture, a blank frame's noise) must not pull the
-    // state; compared with the IMU's prediction of the same velocity.
-    const Eigen::Vector2d predicted_velocity = InHeadingFrame(
-        previous.world_from_body.rotation, Eigen::Vector3d(0.5 * (previous.velocity + predicted.velocity)));
-    const double velocity_sigma_pred = std::sqrt(
-        std::max(0.0, covariance(6, 6) + covariance(7, 7)));
-    if ((velocity - predicted_velocity).norm() >
-        3.0 * std::hypot(sigma, velocity_sigma_pred) + 3.0) {
+    // state; the displacement (with the predicted attitude) against the IMU's prediction.
+    const Eigen::Vector2d measured = sum / n;
+    const Eigen::Vector2d expected = (predicted.position - previous.world_from_body.translation).head<2>();
+    const double velocity_sigma_pred =
+        std::sqrt(std::max(0.0, covariance(6, 6) + covariance(7, 7)));
+    if ((measured - expected).norm() > 3.0 * std::hypot(sigma, velocity_sigma_pred * dt) + 3.0 * dt) {
       ++stats.odometry_rejected;
       return;
     }
-    spdlog::trace("nav-odometry {} {:.4f} {:.4f} {:.3f} {}", previous.t_ns + (t_ns - previous.t_ns) / 2,
-                  velocity.x(), velocity.y(), sigma, step.inliers);
-    backend->AddTimedFactor(std::make_unique<VelocityFactor>(
-        previous.t_ns + (t_ns - previous.t_ns) / 2, velocity, sigma, odometry_loss.get()));
+    spdlog::trace("nav-odometry {} {:.4f} {:.4f} {:.3f} {}", t_ns, measured.x() / dt,
+                  measured.y() / dt, sigma / dt, step.inliers);
+    backend->AddTimedFactor(std::make_unique<DisplacementFactor>(t_ns - 1, rays_prev, rays_cur,
+                                                                 sigma, odometry_loss.get()));
     ++stats.odometry_factors;
   }
 
