@@ -32,7 +32,8 @@ const std::vector<std::string>& NavBenchConfigs() {
 
 std::string NavBenchOptions::Check() const {
   if (out_dir.empty()) return "--out is required";
-  if (map_ortho.empty() || flight_ortho.empty()) return "--map-ortho and --flight-ortho are required";
+  if (map_ortho.empty() || flight_ortho.empty())
+    return "--map-ortho and --flight-ortho are required";
   if (flights < 1 || flights > 20) return "--flights must be in [1, 20]";
   if (!(flight_length_m >= 500 && flight_length_m <= 20000))
     return "--flight-length must be in [500, 20000] m";
@@ -85,8 +86,8 @@ struct Flight {
 };
 
 // Renders a flight unless complete (reuse).
-void RenderFlight(const NavBenchOptions& o, const std::string& waypoints, const Flight& f,
-                  bool fog, uint64_t seed) {
+void RenderFlight(const NavBenchOptions& o, const std::string& waypoints, const Flight& f, bool fog,
+                  uint64_t seed) {
   if (o.reuse && fs::exists(fs::path(f.dir) / "sim_complete.json")) return;
   sim::SimulationOptions s;
   s.world.kind = sim::WorldKind::kOrtho;
@@ -196,14 +197,14 @@ void WriteFlightPlot(const NavBenchOptions& o, const maploc::MapDatabase& db, co
   const geo::GeoRaster raster = geo::GeoRaster::Open(o.flight_ortho);
   const double scale = std::min(1.0, 900.0 / std::max(db.width, db.height));
   report::MapPlot plot;
-  plot.background = raster.ReadGray(0, 0, db.width, db.height,
-                                    std::max(1, static_cast<int>(db.width * scale)),
-                                    std::max(1, static_cast<int>(db.height * scale)));
+  plot.background =
+      raster.ReadGray(0, 0, db.width, db.height, std::max(1, static_cast<int>(db.width * scale)),
+                      std::max(1, static_cast<int>(db.height * scale)));
   plot.background.convertTo(plot.background, CV_8U, 0.6, 90);
   plot.title = fmt::format("optinav bench nav: {} (map NAIP 2009, frames 2017)", flight.name);
   const geo::CrsTransform crs(db.crs_wkt);
-  const geo::LatLon origin = crs.ToLatLon(
-      db.transform.PixelToCrs(Eigen::Vector2d(db.width / 2.0, db.height / 2.0)));
+  const geo::LatLon origin =
+      crs.ToLatLon(db.transform.PixelToCrs(Eigen::Vector2d(db.width / 2.0, db.height / 2.0)));
   const geo::LocalEnu enu(origin, 0.0);
   auto to_px = [&](const Eigen::Vector3d& p) {
     return Eigen::Vector2d(db.transform.CrsToPixel(crs.FromLatLon(enu.FromEnu(p))) * scale);
@@ -309,8 +310,7 @@ NavBenchResult RunNavBench(const NavBenchOptions& o,
   };
   std::vector<Task> tasks;
   for (int i = 0; i < o.flights; ++i)
-    for (const std::string& c : o.configs)
-      tasks.push_back({c == "fog50" ? fog[i] : clear[i], c});
+    for (const std::string& c : o.configs) tasks.push_back({c == "fog50" ? fog[i] : clear[i], c});
   std::vector<NavBenchRun> runs(tasks.size());
   std::atomic<size_t> next{0};
   std::mutex mutex;
@@ -342,19 +342,19 @@ NavBenchResult RunNavBench(const NavBenchOptions& o,
       md += fmt::format("| {} | {} | failed: {} |||||||||\n", r.flight, r.config, r.error);
       continue;
     }
-    md += fmt::format("| {} | {} | {} | {} | {} | {} | {:.1f}x | {} / {} | {} | {} | {} |\n",
-                      r.flight, r.config, Cell(r.rmse_m, 2), Cell(r.max_m), Cell(r.final_m),
-                      Cell(r.altitude_rmse_m, 2), r.realtime_factor, r.fixes_accepted,
-                      r.fixes_tried,
-                      r.config == "outliers10"
-                          ? fmt::format("{} / {}", r.outliers_accepted, r.outliers_injected)
-                          : "-",
-                      Cell(r.gap_end_error_m), Cell(r.recovery_s));
+    md += fmt::format(
+        "| {} | {} | {} | {} | {} | {} | {:.1f}x | {} / {} | {} | {} | {} |\n", r.flight, r.config,
+        Cell(r.rmse_m, 2), Cell(r.max_m), Cell(r.final_m), Cell(r.altitude_rmse_m, 2),
+        r.realtime_factor, r.fixes_accepted, r.fixes_tried,
+        r.config == "outliers10" ? fmt::format("{} / {}", r.outliers_accepted, r.outliers_injected)
+                                 : "-",
+        Cell(r.gap_end_error_m), Cell(r.recovery_s));
   }
   // Per configuration over all flights: RMSE over all poses (from the per-flight RMSEs weighted by
   // duration), worst max.
-  md += "\n| config | RMSE over flights (m) | worst max (m) | altitude RMSE (m) | slowest real time "
-        "|\n|---|---|---|---|---|\n";
+  md +=
+      "\n| config | RMSE over flights (m) | worst max (m) | altitude RMSE (m) | slowest real time "
+      "|\n|---|---|---|---|---|\n";
   for (const std::string& c : o.configs) {
     double sum2 = 0, dur = 0, worst = 0, alt2 = 0, slowest = 1e9;
     for (const NavBenchRun& r : runs) {

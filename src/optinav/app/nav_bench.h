@@ -32,8 +32,8 @@ struct NavBenchOptions {
   double flight_length_m = 3600;  // per flight (3 x 3.6 km >= the acceptance's 10 km)
   uint64_t seed = 1;
   std::vector<std::string> configs = {"map", "fog50", "gap60", "outliers10", "no-map", "gnss3"};
-  int jobs = 1;         // runs in parallel
-  bool reuse = false;   // keep rendered flights and finished runs
+  int jobs = 1;        // runs in parallel
+  bool reuse = false;  // keep rendered flights and finished runs
   double fix_rate_hz = 1.0;
   std::string Check() const;  // "" when valid, else starts with the flag at fault
 };

@@ -57,8 +57,8 @@ std::optional<Eigen::Vector3d> PositionAt(const Trajectory& gt, int64_t t_ns) {
   const auto it = std::lower_bound(gt.t_ns.begin(), gt.t_ns.end(), t_ns);
   const size_t i = static_cast<size_t>(it - gt.t_ns.begin());
   if (gt.t_ns[i] == t_ns || i == 0) return gt.positions[i];
-  const double a = static_cast<double>(t_ns - gt.t_ns[i - 1]) /
-                   static_cast<double>(gt.t_ns[i] - gt.t_ns[i - 1]);
+  const double a =
+      static_cast<double>(t_ns - gt.t_ns[i - 1]) / static_cast<double>(gt.t_ns[i] - gt.t_ns[i - 1]);
   return (1 - a) * gt.positions[i - 1] + a * gt.positions[i];
 }
 
@@ -97,19 +97,19 @@ NavRunReport RunNav(const NavRunSettings& st, const std::function<void(size_t, s
   if (!st.no_map) {
     db.emplace(maploc::LoadMapDatabase(st.map_path));
     const geo::CrsTransform crs(db->crs_wkt);
-    report.origin = crs.ToLatLon(
-        db->transform.PixelToCrs(Eigen::Vector2d(db->width / 2.0, db->height / 2.0)));
+    report.origin =
+        crs.ToLatLon(db->transform.PixelToCrs(Eigen::Vector2d(db->width / 2.0, db->height / 2.0)));
   } else {
     report.origin = st.nav.start->position;
   }
-  nav::MapAidedNavigator navigator(options, sensors, db ? &*db : nullptr, st.locate,
-                                   report.origin);
+  nav::MapAidedNavigator navigator(options, sensors, db ? &*db : nullptr, st.locate, report.origin);
 
   // GNSS positions into the navigator's ENU frame.
   std::vector<std::pair<int64_t, Eigen::Vector3d>> gnss;
   double gnss_sigma = st.gnss_sigma_m;
   if (st.gnss) {
-    if (ds.gnss_csv.empty()) throw Error("--gnss: the dataset has no mav0/gnss0", {.file = ds.mav0_dir});
+    if (ds.gnss_csv.empty())
+      throw Error("--gnss: the dataset has no mav0/gnss0", {.file = ds.mav0_dir});
     const io::GnssFile file = io::ReadGnssFile(ds.gnss_csv);
     const geo::LocalEnu nav_enu(report.origin, 0.0);
     std::optional<geo::LocalEnu> file_enu;
@@ -143,7 +143,8 @@ NavRunReport RunNav(const NavRunSettings& st, const std::function<void(size_t, s
     // Sensors up to (and the IMU one sample past) the frame.
     while (next_imu < imu.size() && (next_imu == 0 || imu[next_imu - 1].t_ns < t))
       navigator.AddImu(imu[next_imu++]);
-    while (next_baro < baro.size() && baro[next_baro].t_ns <= t) navigator.AddBaro(baro[next_baro++]);
+    while (next_baro < baro.size() && baro[next_baro].t_ns <= t)
+      navigator.AddBaro(baro[next_baro++]);
     while (next_gnss < gnss.size() && gnss[next_gnss].first <= t) {
       navigator.AddGnss(gnss[next_gnss].first, gnss[next_gnss].second, gnss_sigma);
       ++next_gnss;
@@ -223,7 +224,8 @@ NavRunReport RunNav(const NavRunSettings& st, const std::function<void(size_t, s
     if (!st.geojson_out.empty())
       io::WriteFileAtomically(st.geojson_out, report::ToGeoJson({line}, {}));
   }
-  if (!st.stats_path.empty()) io::WriteFileAtomically(st.stats_path, report.ToJson().dump(2) + "\n");
+  if (!st.stats_path.empty())
+    io::WriteFileAtomically(st.stats_path, report.ToJson().dump(2) + "\n");
   return report;
 }
 
@@ -237,21 +239,26 @@ nlohmann::json NavRunReport::ToJson() const {
   j["duration_s"] = duration_s;
   j["wall_s"] = wall_s;
   j["realtime_factor"] = wall_s > 0 ? duration_s / wall_s : 0.0;
-  j["initialized_at_s"] =
-      stats.initialized_at_ns ? nlohmann::json((*stats.initialized_at_ns) * 1e-9) : nlohmann::json();
-  j["fixes"] = {{"tried", stats.fixes_tried},       {"found", stats.fixes_found},
-                {"accepted", stats.fixes_accepted}, {"rejected", stats.fixes_rejected}};
+  j["initialized_at_s"] = stats.initialized_at_ns
+                              ? nlohmann::json((*stats.initialized_at_ns) * 1e-9)
+                              : nlohmann::json();
+  j["fixes"] = {{"tried", stats.fixes_tried},
+                {"found", stats.fixes_found},
+                {"accepted", stats.fixes_accepted},
+                {"rejected", stats.fixes_rejected}};
   j["factors"] = {{"odometry", stats.odometry_factors},
                   {"odometry_rejected", stats.odometry_rejected},
                   {"baro", stats.baro_factors}};
   j["resets"] = stats.resets;
   j["gnss"] = {{"received", stats.gnss_received}, {"accepted", stats.gnss_accepted}};
   j["outliers"] = {{"injected", stats.outliers_injected}, {"accepted", stats.outliers_accepted}};
-  j["time_ms"] = {{"locate", stats.locate_ms}, {"odometry", stats.odometry_ms},
-                  {"solve", stats.solve_ms}};
+  j["time_ms"] = {
+      {"locate", stats.locate_ms}, {"odometry", stats.odometry_ms}, {"solve", stats.solve_ms}};
   if (error) {
-    j["error"] = {{"poses", error->poses},         {"rmse_m", error->rmse_m},
-                  {"max_m", error->max_m},         {"final_m", error->final_m},
+    j["error"] = {{"poses", error->poses},
+                  {"rmse_m", error->rmse_m},
+                  {"max_m", error->max_m},
+                  {"final_m", error->final_m},
                   {"altitude_rmse_m", error->altitude_rmse_m}};
   }
   nlohmann::json fx = nlohmann::json::array();

@@ -18,10 +18,10 @@
 namespace optinav::app {
 
 struct NavRunSettings {
-  std::string dataset;   // sequence folder (holding mav0/)
-  std::string map_path;  // map database (required unless no_map)
-  bool no_map = false;   // IMU + baro + odometry only (needs nav.start)
-  std::string out;       // TUM trajectory (required)
+  std::string dataset;                             // sequence folder (holding mav0/)
+  std::string map_path;                            // map database (required unless no_map)
+  bool no_map = false;                             // IMU + baro + odometry only (needs nav.start)
+  std::string out;                                 // TUM trajectory (required)
   std::string stats_path, wgs84_out, geojson_out;  // optional (empty: none)
   nav::NavOptions nav;
   maploc::LocateOptions locate;

@@ -142,11 +142,10 @@ int RunBench(int argc, char** argv) {
   if (argc >= 2 && std::string(argv[1]) == "weather") return RunWeatherBench(argc - 1, argv + 1);
   if (argc >= 2 && std::string(argv[1]) == "nav") return RunNavBench(argc - 1, argv + 1);
   const bool help = argc >= 2 && (std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h");
-  std::fprintf(
-      help ? stdout : stderr,
-      "usage: optinav bench gnss --out DIR [options]      (optinav bench gnss --help)\n"
-      "       optinav bench weather --out DIR [options]   (optinav bench weather --help)\n"
-      "       optinav bench nav --out DIR [options]       (optinav bench nav --help)\n");
+  std::fprintf(help ? stdout : stderr,
+               "usage: optinav bench gnss --out DIR [options]      (optinav bench gnss --help)\n"
+               "       optinav bench weather --out DIR [options]   (optinav bench weather --help)\n"
+               "       optinav bench nav --out DIR [options]       (optinav bench nav --help)\n");
   return help ? 0 : 2;
 }
 

@@ -46,16 +46,24 @@ int RunNav(int argc, char** argv) {
   command.add_option("--start", start,
                      "LAT,LON,HEADING: the start (default: the first map fix, found globally "
                      "and confirmed)");
-  command.add_option("--fix-rate", st.nav.fix_rate_hz, "map fixes tried per second (0: every frame)")
+  command
+      .add_option("--fix-rate", st.nav.fix_rate_hz, "map fixes tried per second (0: every frame)")
       ->capture_default_str();
   command.add_flag("!--no-odometry", st.nav.use_odometry, "no frame-to-frame velocity factors");
-  command.add_option("--odometry-sigma-px", st.nav.odometry_pixel_sigma,
-                     "frame-to-frame homography error (px, 1 sigma) behind the velocity factors")
+  command
+      .add_option("--odometry-sigma-px", st.nav.odometry_pixel_sigma,
+                  "frame-to-frame homography error (px, 1 sigma) behind the velocity factors")
+      ->capture_default_str();
+  command
+      .add_option("--fix-sigma-scale", st.nav.fix_sigma_scale,
+                  "a map fix's sigma is the locator's position_sigma_m times this")
       ->capture_default_str();
   command.add_option("--window", st.nav.window_states, "states in the sliding window")
       ->capture_default_str();
-  command.add_option("--max-frames", st.max_frames, "process only the first N nadir frames (0: all)");
-  command.add_flag("--gnss", st.gnss, "also fuse GNSS positions (mav0/gnss0), gated like map fixes");
+  command.add_option("--max-frames", st.max_frames,
+                     "process only the first N nadir frames (0: all)");
+  command.add_flag("--gnss", st.gnss,
+                   "also fuse GNSS positions (mav0/gnss0), gated like map fixes");
   command.add_option("--gnss-sigma", st.gnss_sigma_m,
                      "GNSS sigma per axis, m (default: the file's sigma column, else 3)");
   std::vector<std::string> blank;
@@ -84,15 +92,17 @@ int RunNav(int argc, char** argv) {
       (void)done;
     });
     if (progress) progress->Finish();
-    std::printf("optinav nav: %zu poses over %.1f s (%zu nadir frames) in %.1f s wall (%.1fx real "
-                "time); map fixes %zu tried, %zu found, %zu accepted, %zu rejected\n",
-                r.poses.size(), r.duration_s, r.stats.frames, r.wall_s,
-                r.wall_s > 0 ? r.duration_s / r.wall_s : 0.0, r.stats.fixes_tried,
-                r.stats.fixes_found, r.stats.fixes_accepted, r.stats.fixes_rejected);
+    std::printf(
+        "optinav nav: %zu poses over %.1f s (%zu nadir frames) in %.1f s wall (%.1fx real "
+        "time); map fixes %zu tried, %zu found, %zu accepted, %zu rejected\n",
+        r.poses.size(), r.duration_s, r.stats.frames, r.wall_s,
+        r.wall_s > 0 ? r.duration_s / r.wall_s : 0.0, r.stats.fixes_tried, r.stats.fixes_found,
+        r.stats.fixes_accepted, r.stats.fixes_rejected);
     if (r.error)
-      std::printf("global error vs ground truth (no alignment): horizontal RMSE %.2f m, max %.2f "
-                  "m, final %.2f m; altitude RMSE %.2f m\n",
-                  r.error->rmse_m, r.error->max_m, r.error->final_m, r.error->altitude_rmse_m);
+      std::printf(
+          "global error vs ground truth (no alignment): horizontal RMSE %.2f m, max %.2f "
+          "m, final %.2f m; altitude RMSE %.2f m\n",
+          r.error->rmse_m, r.error->max_m, r.error->final_m, r.error->altitude_rmse_m);
     std::printf("trajectory -> %s\n", st.out.c_str());
     return 0;
   });
@@ -109,51 +119,53 @@ int RunNavBench(int argc, char** argv) {
       "fixes vs no map vs GNSS 3 m, in fog, through a 60 s gap and with 10 % wrong fixes",
       "optinav bench nav"};
   app::NavBenchOptions o;
-  const std::string naip = std::string(std::getenv("OPTINAV_SHARED_DATA")
-                                           ? std::getenv("OPTINAV_SHARED_DATA")
-                                           : OPTINAV_SHARED_DATA_DEFAULT) +
-                           "/geo/naip/naip_";
+  const std::string naip =
+      std::string(std::getenv("OPTINAV_SHARED_DATA") ? std::getenv("OPTINAV_SHARED_DATA")
+                                                     : OPTINAV_SHARED_DATA_DEFAULT) +
+      "/geo/naip/naip_";
   o.map_ortho = naip + "20090818.tif";
   o.flight_ortho = naip + "20170827.tif";
   std::string configs;
-  command.add_option("--out", o.out_dir, "output folder (flights, runs, tables, plots)")->required();
+  command.add_option("--out", o.out_dir, "output folder (flights, runs, tables, plots)")
+      ->required();
   command.add_option("--map-ortho", o.map_ortho, "the map's orthophoto")->capture_default_str();
   command.add_option("--flight-ortho", o.flight_ortho, "the orthophoto the flights see")
       ->capture_default_str();
   command.add_option("--flights", o.flights, "seeded flights")->capture_default_str();
   command.add_option("--flight-length", o.flight_length_m, "metres per flight")
       ->capture_default_str();
-  command.add_option("--seed", o.seed, "seed of the flight plans and speeds")->capture_default_str();
+  command.add_option("--seed", o.seed, "seed of the flight plans and speeds")
+      ->capture_default_str();
   command.add_option("--configs", configs,
                      "comma list of map,fog50,gap60,outliers10,no-map,gnss3 (default: all)");
   command.add_option("--fix-rate", o.fix_rate_hz, "map fixes tried per second")
       ->capture_default_str();
   command.add_option("--jobs", o.jobs, "runs in parallel")->capture_default_str();
   command.add_flag("--reuse", o.reuse, "keep rendered flights and the map");
-  return cli::RunCli(
-      command, argc, argv,
-      [&] {
-        if (!configs.empty()) {
-          o.configs.clear();
-          std::string item;
-          for (char c : configs + ",") {
-            if (c == ',') {
-              if (!item.empty()) o.configs.push_back(item);
-              item.clear();
-            } else {
-              item += c;
-            }
-          }
-        }
-        cli::ThrowIfCheckFailed(o.Check());
-        const app::NavBenchResult r = app::RunNavBench(o, [](const std::string& line) {
-          std::fprintf(stderr, "bench nav: %s\n", line.c_str());
-        });
-        std::printf("%s\nresults -> %s/results.json, table.md, flight*_paths.png\n",
-                    r.table_md.c_str(), o.out_dir.c_str());
-        return 0;
-      },
-      {.default_log_level = "warn"});
+  return cli::RunCli(command, argc, argv,
+                     [&] {
+                       if (!configs.empty()) {
+                         o.configs.clear();
+                         std::string item;
+                         for (char c : configs + ",") {
+                           if (c == ',') {
+                             if (!item.empty()) o.configs.push_back(item);
+                             item.clear();
+                           } else {
+                             item += c;
+                           }
+                         }
+                       }
+                       cli::ThrowIfCheckFailed(o.Check());
+                       const app::NavBenchResult r =
+                           app::RunNavBench(o, [](const std::string& line) {
+                             std::fprintf(stderr, "bench nav: %s\n", line.c_str());
+                           });
+                       std::printf("%s\nresults -> %s/results.json, table.md, flight*_paths.png\n",
+                                   r.table_md.c_str(), o.out_dir.c_str());
+                       return 0;
+                     },
+                     {.default_log_level = "warn"});
 }
 
 }  // namespace optinav

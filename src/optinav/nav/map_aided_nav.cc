@@ -1,9 +1,9 @@
 #include "optinav/nav/map_aided_nav.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
-#include <array>
 #include <deque>
 #include <random>
 
@@ -14,9 +14,9 @@
 #include "optinav/maploc/aerial_camera.h"
 #include "optinav/nav/internal/frame_odometry.h"
 #include "optinav/util/error.h"
-#include "optinav/vio/gnss_fusion.h"
 #include "optinav/vio/backend.h"
 #include "optinav/vio/factors.h"
+#include "optinav/vio/gnss_fusion.h"
 
 namespace optinav::nav {
 
@@ -70,8 +70,7 @@ class PositionFactor : public vio::TimedFactor {
   int64_t t_ns() const override { return t_ns_; }
   ceres::CostFunction* Create(const vio::ImuPreintegration& pre, const Eigen::Vector3d& gravity,
                               bool) const override {
-    return new ceres::AutoDiffCostFunction<PositionFunctor, 3, vio::kPoseSize,
-                                           vio::kSpeedBiasSize>(
+    return new ceres::AutoDiffCostFunction<PositionFunctor, 3, vio::kPoseSize, vio::kSpeedBiasSize>(
         new PositionFunctor(pre, gravity, fix_, sigma_, altitude_sigma_));
   }
   const ceres::LossFunction* loss() const override { return loss_; }
@@ -138,7 +137,10 @@ class DisplacementFunctor {
   DisplacementFunctor(const vio::ImuPreintegration& pre, const Eigen::Vector3d& gravity,
                       const std::array<Eigen::Vector3d, kOdometryPoints>& rays_prev,
                       const std::array<Eigen::Vector3d, kOdometryPoints>& rays_cur, double sigma)
-      : predict_(pre, gravity), rays_prev_(rays_prev), rays_cur_(rays_cur), inv_sigma_(1.0 / sigma) {}
+      : predict_(pre, gravity),
+        rays_prev_(rays_prev),
+        rays_cur_(rays_cur),
+        inv_sigma_(1.0 / sigma) {}
   template <typename T>
   bool operator()(const T* pose, const T* sb, T* residuals) const {
     using Vec3 = Eigen::Matrix<T, 3, 1>;
@@ -215,7 +217,7 @@ std::string NavOptions::Check() const {
     return "odometry sigmas must be > 0";
   if (!(fix_rate_hz >= 0)) return "fix_rate_hz must be >= 0";
   if (!vio::ParseGnssNorm(map_norm)) return "map_norm must be l2, huber or tukey, got " + map_norm;
-  if (!(fix_sigma_floor_m > 0) || !(fix_altitude_sigma_rel > 0))
+  if (!(fix_sigma_floor_m > 0) || !(fix_altitude_sigma_rel > 0) || !(fix_sigma_scale > 0))
     return "fix sigmas must be > 0";
   if (!(reopen_after_s > 0)) return "reopen_after_s must be > 0";
   if (!(min_prior_radius_m > 0) || !(max_local_radius_m >= min_prior_radius_m))
@@ -248,6 +250,7 @@ struct MapAidedNavigator::Impl {
   std::optional<int64_t> last_fix_try_ns;
   std::optional<int64_t> rejecting_since_ns;
   double gate_scale = 1.0;
+  int odometry_rejections = 0;  // consecutive
   std::optional<FixLog> candidate;  // initialisation: a global fix waiting for confirmation
   struct Gnss {
     int64_t t_ns;
@@ -269,8 +272,7 @@ struct MapAidedNavigator::Impl {
       locate.camera = sensors.camera;
       locator = std::make_unique<maploc::Locator>(*db, locate);
     }
-    map_loss = vio::MakeGnssLoss(*vio::ParseGnssNorm(options.map_norm),
-                                 options.map_norm_parameter);
+    map_loss = vio::MakeGnssLoss(*vio::ParseGnssNorm(options.map_norm), options.map_norm_parameter);
     odometry_loss = std::make_unique<ceres::HuberLoss>(2.0);
     backend_options.window_keyframes = options.window_states;
     backend_options.imu_noise = {options.gyro_noise_density, options.accel_noise_density,
@@ -315,7 +317,8 @@ struct MapAidedNavigator::Impl {
       ++stats.fixes_found;
       log.enu.head<2>() = enu.ToEnu(r.latlon, 0.0).head<2>();
       log.enu.z() = r.method == "features" ? r.altitude_m : -1;
-      log.sigma_m = std::max(options.fix_sigma_floor_m, r.position_sigma_m);
+      log.sigma_m =
+          std::max(options.fix_sigma_floor_m, options.fix_sigma_scale * r.position_sigma_m);
       fix_attitude = {r.roll_deg, r.pitch_deg, r.heading_deg};
       if (options.inject_outlier_fraction > 0 &&
           std::uniform_real_distribution<double>(0, 1)(outlier_rng) <
@@ -353,9 +356,9 @@ struct MapAidedNavigator::Impl {
     s.world_from_body = {Eigen::Quaterniond(rotation), position};
     s.velocity = velocity;
     backend->Initialize(s, {}, -1, velocity_sigma, -1);
-    bias_block = backend->AddGlobalBlock(Eigen::VectorXd::Zero(1),
-                                         Eigen::VectorXd::Constant(1, options.baro_bias_sigma_m),
-                                         Eigen::VectorXd::Constant(1, options.baro_bias_walk_m_per_sqrt_s));
+    bias_block = backend->AddGlobalBlock(
+        Eigen::VectorXd::Zero(1), Eigen::VectorXd::Constant(1, options.baro_bias_sigma_m),
+        Eigen::VectorXd::Constant(1, options.baro_bias_walk_m_per_sqrt_s));
     covariance = backend->NewestCovariance();
     stats.initialized_at_ns = stats.initialized_at_ns.value_or(t_ns);
     gate_scale = 1.0;
@@ -416,13 +419,18 @@ struct MapAidedNavigator::Impl {
     if (log.injected || candidate->injected) ++stats.outliers_accepted;
     Eigen::Vector3d p(log.enu.x(), log.enu.y(), log.enu.z() > 0 ? log.enu.z() : 0.0);
     if (baro_alt && *baro_alt > 0) p.z() = *baro_alt;
-    const Eigen::Matrix3d rotation = BodyRotation(fix_attitude[0], fix_attitude[1], fix_attitude[2]);
+    const Eigen::Matrix3d rotation =
+        BodyRotation(fix_attitude[0], fix_attitude[1], fix_attitude[2]);
+    // The velocity from the two fixes only when they are far enough apart in time for it to
+    // mean something (the confirmation usually comes 0.2 s later); else unknown, for the
+    // homography factors to find.
     Eigen::Vector3d velocity = Eigen::Vector3d::Zero();
     double velocity_sigma = options.init_velocity_sigma_m_s;
-    if (dt > 0.1) {
+    if (dt >= 2.0) {
       velocity.head<2>() = d / dt;
       velocity_sigma = std::min(velocity_sigma, std::max(3.0, 3.0 * log.sigma_m / dt));
     }
+    odometry_rejections = 0;
     Start(t_ns, p, rotation, velocity, log.sigma_m, 5 * kDeg, velocity_sigma);
     candidate.reset();
     fixes.push_back(log);
@@ -459,8 +467,8 @@ struct MapAidedNavigator::Impl {
     std::array<Eigen::Vector3d, kOdometryPoints> rays_prev, rays_cur;
     Eigen::Vector2d sum = Eigen::Vector2d::Zero();
     int n = 0;
-    for (const auto& [fx, fy] : {std::pair{0.5, 0.5}, {0.25, 0.25}, {0.75, 0.25}, {0.25, 0.75},
-                                 {0.75, 0.75}}) {
+    for (const auto& [fx, fy] :
+         {std::pair{0.5, 0.5}, {0.25, 0.25}, {0.75, 0.25}, {0.25, 0.75}, {0.75, 0.75}}) {
       const cv::Vec3d c(fx * w, fy * hgt, 1.0);
       const cv::Vec3d q = step.prev_from_cur * c;
       if (std::abs(q[2]) < 1e-9) return;
@@ -479,13 +487,20 @@ struct MapAidedNavigator::Impl {
     // Gate: a wrong homography (repeated texture, a blank frame's noise) must not pull the
     // state; the displacement (with the predicted attitude) against the IMU's prediction.
     const Eigen::Vector2d measured = sum / n;
-    const Eigen::Vector2d expected = (predicted.position - previous.world_from_body.translation).head<2>();
+    const Eigen::Vector2d expected =
+        (predicted.position - previous.world_from_body.translation).head<2>();
     const double velocity_sigma_pred =
         std::sqrt(std::max(0.0, covariance(6, 6) + covariance(7, 7)));
-    if ((measured - expected).norm() > 3.0 * std::hypot(sigma, velocity_sigma_pred * dt) + 3.0 * dt) {
+    // A run of rejections means the prediction, not the homography, is off (e.g. a velocity
+    // still unknown after the start): the next ones go in, under the robust loss.
+    if ((measured - expected).norm() >
+            3.0 * std::hypot(sigma, velocity_sigma_pred * dt) + 3.0 * dt &&
+        odometry_rejections < 3) {
       ++stats.odometry_rejected;
+      ++odometry_rejections;
       return;
     }
+    odometry_rejections = 0;
     spdlog::trace("nav-odometry {} {:.4f} {:.4f} {:.3f} {}", t_ns, measured.x() / dt,
                   measured.y() / dt, sigma / dt, step.inliers);
     backend->AddTimedFactor(std::make_unique<DisplacementFactor>(t_ns - 1, rays_prev, rays_cur,
@@ -496,15 +511,13 @@ struct MapAidedNavigator::Impl {
   void TryFix(int64_t t_ns, const cv::Mat& gray, const vio::NavState& predicted,
               const Eigen::Matrix3d& p_cov, double yaw_sigma_rad) {
     const Eigen::Matrix2d p_xy = p_cov.topLeftCorner<2, 2>();
-    const double sigma_max = std::sqrt(std::max(0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(
-                                                         p_xy)
-                                                         .eigenvalues()
-                                                         .maxCoeff()));
+    const double sigma_max = std::sqrt(std::max(
+        0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(p_xy).eigenvalues().maxCoeff()));
     maploc::Prior prior;
-    const double radius =
-        std::max(options.min_prior_radius_m, 3.0 * sigma_max * gate_scale + 30.0);
+    const double radius = std::max(options.min_prior_radius_m, 3.0 * sigma_max * gate_scale + 30.0);
     if (radius <= options.max_local_radius_m) {
-      prior.position = enu.FromEnu(Eigen::Vector3d(predicted.position.x(), predicted.position.y(), 0));
+      prior.position =
+          enu.FromEnu(Eigen::Vector3d(predicted.position.x(), predicted.position.y(), 0));
       prior.radius_m = radius;
     }
     double roll, pitch, heading;
@@ -546,11 +559,12 @@ struct MapAidedNavigator::Impl {
             log.sigma_m, alt_sigma, map_loss.get()));
       }
     }
-    spdlog::debug("nav: t={:.1f} fix {} {} {} innovation {:.1f} m chi2 {:.1f} sigma {:.1f} m, "
-                  "prior radius {:.0f} m (gate x{:.0f})",
-                  t_ns * 1e-9, log.found ? "found" : "none", log.accepted ? "accepted" : "-",
-                  log.method, log.innovation_m, log.chi2, log.sigma_m,
-                  prior.position ? prior.radius_m : -1.0, gate_scale);
+    spdlog::debug(
+        "nav: t={:.1f} fix {} {} {} innovation {:.1f} m chi2 {:.1f} sigma {:.1f} m, "
+        "prior radius {:.0f} m (gate x{:.0f})",
+        t_ns * 1e-9, log.found ? "found" : "none", log.accepted ? "accepted" : "-", log.method,
+        log.innovation_m, log.chi2, log.sigma_m, prior.position ? prior.radius_m : -1.0,
+        gate_scale);
     fixes.push_back(log);
   }
 
@@ -582,7 +596,8 @@ struct MapAidedNavigator::Impl {
         TryInitialize(t_ns, gray);
         last_fix_try_ns = t_ns;
       }
-      std::erase_if(imu, [&](const vio::TimedImuSample& s) { return s.t_ns < t_ns - 1'000'000'000; });
+      std::erase_if(imu,
+                    [&](const vio::TimedImuSample& s) { return s.t_ns < t_ns - 1'000'000'000; });
       odometry.Reset();
       odometry.Track(gray);
       have_frame = true;
@@ -603,8 +618,8 @@ struct MapAidedNavigator::Impl {
                     previous.bias, backend_options.gravity);
     // Barometer samples up to the frame.
     while (!baro.empty() && baro.front().t_ns <= t_ns) {
-      backend->AddTimedFactor(std::make_unique<BaroFactor>(baro.front(), options.baro_sigma_m,
-                                                           bias_block, nullptr));
+      backend->AddTimedFactor(
+          std::make_unique<BaroFactor>(baro.front(), options.baro_sigma_m, bias_block, nullptr));
       ++stats.baro_factors;
       baro.pop_front();
     }
@@ -618,8 +633,7 @@ struct MapAidedNavigator::Impl {
       const Eigen::Matrix3d s = covariance.topLeftCorner<3, 3>() +
                                 Eigen::Matrix3d::Identity() * (g.sigma * g.sigma + 0.25);
       const Eigen::Vector3d e = g.enu - at_sample;
-      if (options.gnss_gate_chi2 > 0 && e.dot(s.ldlt().solve(e)) > options.gnss_gate_chi2)
-        continue;
+      if (options.gnss_gate_chi2 > 0 && e.dot(s.ldlt().solve(e)) > options.gnss_gate_chi2) continue;
       backend->AddTimedFactor(
           std::make_unique<PositionFactor>(g.t_ns, g.enu, g.sigma, g.sigma, map_loss.get()));
       ++stats.gnss_accepted;
@@ -645,9 +659,10 @@ struct MapAidedNavigator::Impl {
     const double sigma_h = std::sqrt(std::max(0.0, covariance(0, 0) + covariance(1, 1)));
     if (!estimate.world_from_body.translation.allFinite() || !estimate.velocity.allFinite() ||
         !(sigma_h < 5000.0)) {
-      spdlog::warn("nav: estimate diverged at t={} s (horizontal sigma {} m, speed {} m/s), "
-                   "re-initialising",
-                   t_ns * 1e-9, sigma_h, estimate.velocity.norm());
+      spdlog::warn(
+          "nav: estimate diverged at t={} s (horizontal sigma {} m, speed {} m/s), "
+          "re-initialising",
+          t_ns * 1e-9, sigma_h, estimate.velocity.norm());
       backend.reset();
       ++stats.resets;
       return std::nullopt;

@@ -176,8 +176,7 @@ class OffsetAltimeterFactor : public TimedFactor {
   int64_t t_ns() const override { return t_ns_; }
   ceres::CostFunction* Create(const ImuPreintegration& pre, const Eigen::Vector3d& g,
                               bool) const override {
-    return new ceres::AutoDiffCostFunction<OffsetAltimeterFunctor, 1, kPoseSize, kSpeedBiasSize,
-                                           1>(
+    return new ceres::AutoDiffCostFunction<OffsetAltimeterFunctor, 1, kPoseSize, kSpeedBiasSize, 1>(
         new OffsetAltimeterFunctor{TimedStatePredictor(pre, g), measured_, 0.01});
   }
   std::vector<int> global_blocks() const override { return {block_}; }
@@ -204,8 +203,9 @@ TEST(Backend, GlobalBlockAndNewestCovariance) {
   init.world_from_body = scene.trajectory.Pose(0.0);
   init.velocity = scene.trajectory.Velocity(0.0);
   backend.Initialize(init, {});
-  const int offset = backend.AddGlobalBlock(Eigen::VectorXd::Zero(1), Eigen::VectorXd::Constant(1, 2.0),
-                                            Eigen::VectorXd::Constant(1, 0.001));
+  const int offset =
+      backend.AddGlobalBlock(Eigen::VectorXd::Zero(1), Eigen::VectorXd::Constant(1, 2.0),
+                             Eigen::VectorXd::Constant(1, 0.001));
   EXPECT_EQ(backend.GlobalBlock(offset).size(), 1);
   for (double t = 0.33; t < 6.0; t += 0.5)
     backend.AddTimedFactor(std::make_unique<TestPositionFactor>(
@@ -228,9 +228,10 @@ TEST(Backend, GlobalBlockAndNewestCovariance) {
   const double error = (backend.Newest().world_from_body.translation -
                         scene.trajectory.Position(frames.back().t_ns * 1e-9))
                            .norm();
-  std::printf("altimeter offset %.4f m (truth 0.7, |err| < 0.02); newest position error %.4f m, "
-              "sigma x %.4f m, sigma z %.4f m (in (0.001, 0.2))\n",
-              estimated, error, sigma_x, sigma_z);
+  std::printf(
+      "altimeter offset %.4f m (truth 0.7, |err| < 0.02); newest position error %.4f m, "
+      "sigma x %.4f m, sigma z %.4f m (in (0.001, 0.2))\n",
+      estimated, error, sigma_x, sigma_z);
   EXPECT_NEAR(estimated, 0.7, 0.02);
   EXPECT_GT(sigma_x, 0.001);
   EXPECT_LT(sigma_x, 0.2);

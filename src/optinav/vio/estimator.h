@@ -52,8 +52,8 @@
 #include "optinav/camera/camera.h"
 #include "optinav/util/queue.h"
 #include "optinav/util/timer.h"
-#include "optinav/vio/gnss_fusion.h"
 #include "optinav/vio/backend.h"
+#include "optinav/vio/gnss_fusion.h"
 #include "optinav/vio/internal/frontend.h"
 #include "optinav/vio/internal/loop_closure.h"
 

@@ -60,8 +60,7 @@ class TimedStatePredictor {
                   std::type_identity_t<Eigen::Matrix<T, 3, 1>>* v_t,
                   std::type_identity_t<Eigen::Quaternion<T>>* q_t) const {
     using Vec3 = Eigen::Matrix<T, 3, 1>;
-    const Eigen::Map<const Vec3> p_i(pose), v_i(speed_bias), bg(speed_bias + 3),
-        ba(speed_bias + 6);
+    const Eigen::Map<const Vec3> p_i(pose), v_i(speed_bias), bg(speed_bias + 3), ba(speed_bias + 6);
     const Eigen::Map<const Eigen::Quaternion<T>> q_i(pose + 3);
     const Vec3 dbg = bg - bg0_.cast<T>(), dba = ba - ba0_.cast<T>();
     const T dt(dt_);
