@@ -208,9 +208,9 @@ def self_test():
         'src/optinav/vio/CMakeLists.txt':
             'optinav_add_library(NAME vio SRCS backend.cc estimator.cc\n'
             '  PUBLIC_DEPS optinav_geometry optinav_util)\n',
-        'src/optinav/vio/backend.h': '#include "optinav/geometry/lie.h"\n',
-        'src/optinav/vio/backend.cc': '#include "optinav/vio/backend.h"\n',
-        'src/optinav/vio/estimator.h': '#include "optinav/vio/backend.h"\n',
+        'src/optinav/vio/internal/backend.h': '#include "optinav/geometry/lie.h"\n',
+        'src/optinav/vio/backend.cc': '#include "optinav/vio/internal/backend.h"\n',
+        'src/optinav/vio/estimator.h': '#include "optinav/vio/internal/backend.h"\n',
         'src/optinav/vio/estimator.cc': '#include "optinav/vio/estimator.h"\n',
         'src/optinav/eval/CMakeLists.txt':
             'optinav_add_library(NAME eval SRCS metrics.cc DEPS optinav_geometry)\n',
@@ -232,13 +232,13 @@ def self_test():
     bad['src/optinav/util/error.cc'] = ('#include "optinav/util/error.h"\n'
                                         '#include "optinav/eval/metrics.h"\n')
     bad['src/optinav/eval/metrics.cc'] = ('#include "optinav/eval/metrics.h"\n'
-                                          '#include "optinav/vio/backend.h"\n')
+                                          '#include "optinav/vio/internal/backend.h"\n')
     bad['src/optinav/exe/run.cc'] = '#include "optinav/util/testing.h"\n'
-    bad['bench/vio_bench.cc'] = '#include "optinav/vio/backend.h"\n'
-    bad['src/optinav/vio/backend.cc'] = ('#include "optinav/vio/backend.h"\n'
+    bad['bench/vio_bench.cc'] = '#include "optinav/vio/internal/backend.h"\n'
+    bad['src/optinav/vio/backend.cc'] = ('#include "optinav/vio/internal/backend.h"\n'
                                          '#include "../eval/metrics.h"\n')
     bad['src/optinav/geometry/lie_test.cc'] = '#include "optinav/vio/estimator.h"\n'
-    bad['src/optinav/vio/estimator.h'] = ('#include "optinav/vio/backend.h"\n'
+    bad['src/optinav/vio/estimator.h'] = ('#include "optinav/vio/internal/backend.h"\n'
                                           '#include "optinav/util/error.h"\n'
                                           '#include "optinav/nav/mission.h"\n')
     bad['src/optinav/vio/CMakeLists.txt'] = (
@@ -254,12 +254,12 @@ def self_test():
         'src/optinav/vio/estimator.h:2: vio includes optinav/util/error.h, but optinav_util is '
         'not reachable from optinav_vio through PUBLIC_DEPS',
         'src/optinav/vio/estimator.h:3: "optinav/nav/mission.h": no such layer',
-        'src/optinav/eval/metrics.cc:2: optinav/vio/backend.h is internal to vio',
-        'src/optinav/eval/metrics.cc:2: eval includes optinav/vio/backend.h, but '
+        'src/optinav/eval/metrics.cc:2: optinav/vio/internal/backend.h is internal to vio',
+        'src/optinav/eval/metrics.cc:2: eval includes optinav/vio/internal/backend.h, but '
         'optinav_vio is not a dependency of optinav_eval',
         'src/optinav/exe/run.cc:1: optinav/util/testing.h is a test helper, included by library '
         'code',
-        'bench/vio_bench.cc:1: optinav/vio/backend.h is internal to vio',
+        'bench/vio_bench.cc:1: optinav/vio/internal/backend.h is internal to vio',
         'src/optinav/vio/backend.cc:2: "../eval/metrics.h": include optinav headers by their '
         'full path',
     ]

@@ -250,7 +250,7 @@ struct MapAidedNavigator::Impl {
   std::optional<int64_t> last_fix_try_ns;
   std::optional<int64_t> rejecting_since_ns;
   double gate_scale = 1.0;
-  int odometry_rejections = 0;  // consecutive
+  int odometry_rejections = 0;      // consecutive
   std::optional<FixLog> candidate;  // initialisation: a global fix waiting for confirmation
   struct Gnss {
     int64_t t_ns;
@@ -278,6 +278,7 @@ struct MapAidedNavigator::Impl {
     backend_options.imu_noise = {options.gyro_noise_density, options.accel_noise_density,
                                  options.gyro_random_walk, options.accel_random_walk};
     backend_options.max_iterations = 10;
+    backend_options.jacobi_scaled_marginalization = true;
   }
 
   bool initialized() const { return backend && backend->initialized(); }

@@ -214,7 +214,8 @@ void SlidingWindowBackend::EnableAlignment(const WorldAlignment& initial,
 void SlidingWindowBackend::InflateAlignment(const Eigen::Vector4d& sigma) {
   if (!alignment_enabled_) return;
   prior_ = AddRandomWalk(prior_, alignment_,
-                         sigma.cwiseAbs2().cwiseMax(1e-12).asDiagonal().toDenseMatrix());
+                         sigma.cwiseAbs2().cwiseMax(1e-12).asDiagonal().toDenseMatrix(),
+                         options_.jacobi_scaled_marginalization);
 }
 
 WorldAlignment SlidingWindowBackend::alignment() const {
@@ -325,7 +326,7 @@ Eigen::MatrixXd SlidingWindowBackend::NewestCovariance() const {
   for (const auto& s : owned) specs.push_back(s.get());
   const LinearPrior left = Marginalize(
       specs, marginalize, [&](const double* b) { return ManifoldOf(b); },
-      [&](const double* b) { return SizeOf(b); });
+      [&](const double* b) { return SizeOf(b); }, options_.jacobi_scaled_marginalization);
   const int n = options_.use_imu ? kPoseTangentSize + kSpeedBiasSize : kPoseTangentSize;
   // The kept blocks in the prior's order -> pose first, then speed-bias.
   Eigen::MatrixXd info = Eigen::MatrixXd::Zero(n, n);
@@ -769,7 +770,7 @@ void SlidingWindowBackend::MarginalizeOldest() {
   for (const auto& s : owned) specs.push_back(s.get());
   prior_ = Marginalize(
       specs, marginalize, [&](const double* b) { return ManifoldOf(b); },
-      [&](const double* b) { return SizeOf(b); });
+      [&](const double* b) { return SizeOf(b); }, options_.jacobi_scaled_marginalization);
   if (alignment_enabled_ && (alignment_walk_translation_ > 0 || alignment_walk_yaw_ > 0)) {
     const double d =
         (states_[1]->WorldFromBody().translation - oldest->WorldFromBody().translation).norm();
@@ -784,13 +785,14 @@ void SlidingWindowBackend::MarginalizeOldest() {
     q.diagonal().head<3>().array() +=
         std::max(alignment_walk_translation_ * alignment_walk_translation_ * d, 1e-12);
     q(3, 3) = std::max(q(3, 3), 1e-12);
-    prior_ = AddRandomWalk(prior_, alignment_, q);
+    prior_ = AddRandomWalk(prior_, alignment_, q, options_.jacobi_scaled_marginalization);
   }
   const double dt_s = (states_[1]->t_ns - oldest->t_ns) * 1e-9;
   for (const auto& g : globals_) {
     if (!(g->walk_per_sqrt_s.array() > 0).any() || !prior_.Involves(g->values.data())) continue;
     const Eigen::VectorXd var = (g->walk_per_sqrt_s.array().square() * dt_s).max(1e-12).matrix();
-    prior_ = AddRandomWalk(prior_, g->values.data(), var.asDiagonal().toDenseMatrix());
+    prior_ = AddRandomWalk(prior_, g->values.data(), var.asDiagonal().toDenseMatrix(),
+                           options_.jacobi_scaled_marginalization);
   }
 
   // Remove what left the window.

@@ -71,6 +71,11 @@ struct BackendOptions {
   double prior_accel_bias_sigma = 0.2;
   ImuNoise imu_noise;
   Eigen::Vector3d gravity = GravityInWorld();
+  // Marginalisation and the prior's factorisation judge gauge directions on the Jacobi-scaled
+  // information (vio::Marginalize): needed when weak absolute information (map fixes known to
+  // 10 m) shares the window with bias random walks; the VIO keeps the unscaled threshold its
+  // figures were tuned with.
+  bool jacobi_scaled_marginalization = false;
 
   // Empty when valid, else a message naming the field and value.
   std::string Check() const;

@@ -244,13 +244,15 @@ class PriorCost : public ceres::CostFunction {
 using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
 // H = J^T J, b = J^T r0 -> (J, r0) of a prior (eigen-decomposition; null directions dropped).
-void FactorInformation(const Eigen::MatrixXd& H, const Eigen::VectorXd& b, LinearPrior* prior) {
+void FactorInformation(const Eigen::MatrixXd& H, const Eigen::VectorXd& b, LinearPrior* prior,
+                       bool jacobi_scaling) {
   // On the Jacobi-scaled matrix D H D (D = diag(H)^-1/2), as in Marginalize: the threshold that
   // separates null directions must not drop information that is only small in its units.
   const Eigen::Index n = H.rows();
   const Eigen::MatrixXd hs = 0.5 * (H + H.transpose());
   Eigen::VectorXd d(n);
-  for (Eigen::Index i = 0; i < n; ++i) d[i] = hs(i, i) > 0 ? 1.0 / std::sqrt(hs(i, i)) : 1.0;
+  for (Eigen::Index i = 0; i < n; ++i)
+    d[i] = jacobi_scaling && hs(i, i) > 0 ? 1.0 / std::sqrt(hs(i, i)) : 1.0;
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(d.asDiagonal() * hs * d.asDiagonal());
   const Eigen::VectorXd l = eig.eigenvalues();
   const double max_l = std::max(l.maxCoeff(), 1e-12);
@@ -302,7 +304,7 @@ ceres::CostFunction* LinearPrior::CreateCostFunction() const { return new PriorC
 LinearPrior Marginalize(const std::vector<const ResidualSpec*>& residuals,
                         const std::vector<double*>& marginalize,
                         const std::function<const ceres::Manifold*(const double*)>& manifold_of,
-                        const std::function<int(const double*)>& size_of) {
+                        const std::function<int(const double*)>& size_of, bool jacobi_scaling) {
   // Order: marginalised blocks first, then the kept blocks in order of appearance.
   std::vector<double*> order(marginalize.begin(), marginalize.end());
   std::map<const double*, int> index;
@@ -378,7 +380,8 @@ LinearPrior Marginalize(const std::vector<const ResidualSpec*>& residuals,
   const Eigen::MatrixXd Hmm =
       0.5 * (H.topLeftCorner(m_dim, m_dim) + H.topLeftCorner(m_dim, m_dim).transpose());
   Eigen::VectorXd d(m_dim);
-  for (int i = 0; i < m_dim; ++i) d[i] = Hmm(i, i) > 0 ? 1.0 / std::sqrt(Hmm(i, i)) : 1.0;
+  for (int i = 0; i < m_dim; ++i)
+    d[i] = jacobi_scaling && Hmm(i, i) > 0 ? 1.0 / std::sqrt(Hmm(i, i)) : 1.0;
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig_mm(d.asDiagonal() * Hmm * d.asDiagonal());
   const Eigen::VectorXd lm = eig_mm.eigenvalues();
   const double max_lm = lm.size() ? std::max(lm.maxCoeff(), 1e-12) : 1.0;
@@ -393,7 +396,7 @@ LinearPrior Marginalize(const std::vector<const ResidualSpec*>& residuals,
 
   LinearPrior prior;
   if (r_dim == 0) return prior;
-  FactorInformation(Hs, bs, &prior);
+  FactorInformation(Hs, bs, &prior, jacobi_scaling);
   for (size_t i = marginalize.size(); i < order.size(); ++i) {
     LinearPrior::Block block;
     block.values = order[i];
@@ -407,7 +410,7 @@ LinearPrior Marginalize(const std::vector<const ResidualSpec*>& residuals,
 }
 
 LinearPrior AddRandomWalk(const LinearPrior& prior, const double* block,
-                          const Eigen::MatrixXd& covariance) {
+                          const Eigen::MatrixXd& covariance, bool jacobi_scaling) {
   int offset = -1, size = 0, total = 0;
   for (const LinearPrior::Block& b : prior.blocks) {
     if (b.values == block) offset = total, size = b.tangent_size;
@@ -449,7 +452,7 @@ LinearPrior AddRandomWalk(const LinearPrior& prior, const double* block,
   bn.segment(offset, size) = Qinv * Minv * ba;
   LinearPrior out;
   out.blocks = prior.blocks;
-  FactorInformation(Hn, bn, &out);
+  FactorInformation(Hn, bn, &out, jacobi_scaling);
   return out;
 }
 

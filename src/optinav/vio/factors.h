@@ -131,16 +131,19 @@ struct ResidualSpec {
 // Schur-complement marginalisation: linearises `residuals` at the current values, eliminates
 // the blocks in `marginalize` and returns the prior left on the remaining blocks they touch.
 // `manifold_of` maps a block to its manifold (nullptr for Euclidean), `size_of` to its ambient
-// size.
+// size. Directions with information below 1e-10 of the largest are gauge directions (dropped);
+// `jacobi_scaling` compares them on D H D, D = diag(H)^-1/2, instead of H (for windows whose
+// blocks differ by many orders of magnitude in information: map-aided navigation, docs/NAV.md).
 LinearPrior Marginalize(const std::vector<const ResidualSpec*>& residuals,
                         const std::vector<double*>& marginalize,
                         const std::function<const ceres::Manifold*(const double*)>& manifold_of,
-                        const std::function<int(const double*)>& size_of);
+                        const std::function<int(const double*)>& size_of,
+                        bool jacobi_scaling = false);
 
 // A random walk on one block of a prior: that block's value is replaced by value + w,
 // w ~ N(0, covariance) (in its tangent space), i.e. the prior forgets part of what it knew about
 // it. Exact in information form: the old block is eliminated from the joint with the new one.
 LinearPrior AddRandomWalk(const LinearPrior& prior, const double* block,
-                          const Eigen::MatrixXd& covariance);
+                          const Eigen::MatrixXd& covariance, bool jacobi_scaling = false);
 
 }  // namespace optinav::vio
