@@ -285,25 +285,32 @@ std::vector<std::unique_ptr<ResidualSpec>> SlidingWindowBackend::BuildStateResid
       specs.push_back(std::move(spec));
     }
   }
-  if (!prior_.empty()) {
-    auto spec = std::make_unique<ResidualSpec>();
-    spec->cost.reset(prior_.CreateCostFunction());
-    for (const auto& b : prior_.blocks) spec->blocks.push_back(b.values);
-    specs.push_back(std::move(spec));
-  }
-  for (const auto& factor : timed_factors_) {
-    ImuPreintegration anchor_to_t;
-    State* anchor = AnchorFor(factor->t_ns(), &anchor_to_t);
-    if (!anchor) continue;
-    std::vector<double*> blocks = TimedFactorBlocks(*factor, anchor);
-    if (blocks.empty()) continue;
-    auto spec = std::make_unique<ResidualSpec>();
-    spec->cost.reset(factor->Create(anchor_to_t, options_.gravity, options_.use_imu));
-    spec->loss = factor->loss();
-    spec->blocks = std::move(blocks);
-    specs.push_back(std::move(spec));
-  }
+  if (auto spec = PriorSpec()) specs.push_back(std::move(spec));
+  for (const auto& factor : timed_factors_)
+    if (auto spec = TimedFactorSpec(*factor, nullptr)) specs.push_back(std::move(spec));
   return specs;
+}
+
+std::unique_ptr<ResidualSpec> SlidingWindowBackend::PriorSpec() const {
+  if (prior_.empty()) return nullptr;
+  auto spec = std::make_unique<ResidualSpec>();
+  spec->cost.reset(prior_.CreateCostFunction());
+  for (const auto& b : prior_.blocks) spec->blocks.push_back(b.values);
+  return spec;
+}
+
+std::unique_ptr<ResidualSpec> SlidingWindowBackend::TimedFactorSpec(const TimedFactor& factor,
+                                                                    const State* only) const {
+  ImuPreintegration anchor_to_t;
+  State* anchor = AnchorFor(factor.t_ns(), &anchor_to_t);
+  if (!anchor || (only && anchor != only)) return nullptr;
+  std::vector<double*> blocks = TimedFactorBlocks(factor, anchor);
+  if (blocks.empty()) return nullptr;
+  auto spec = std::make_unique<ResidualSpec>();
+  spec->cost.reset(factor.Create(anchor_to_t, options_.gravity, options_.use_imu));
+  spec->loss = factor.loss();
+  spec->blocks = std::move(blocks);
+  return spec;
 }
 
 Eigen::MatrixXd SlidingWindowBackend::NewestCovariance() const {
@@ -743,25 +750,11 @@ void SlidingWindowBackend::MarginalizeOldest() {
     spec->blocks = {oldest->pose, oldest->speed_bias, states_[1]->pose, states_[1]->speed_bias};
     owned.push_back(std::move(spec));
   }
-  if (!prior_.empty()) {
-    auto spec = std::make_unique<ResidualSpec>();
-    spec->cost.reset(prior_.CreateCostFunction());
-    for (const auto& b : prior_.blocks) spec->blocks.push_back(b.values);
-    owned.push_back(std::move(spec));
-  }
+  if (auto spec = PriorSpec()) owned.push_back(std::move(spec));
   const int64_t next_t = states_[1]->t_ns;
   for (const auto& factor : timed_factors_) {
     if (factor->t_ns() >= next_t) continue;
-    ImuPreintegration anchor_to_t;
-    State* anchor = AnchorFor(factor->t_ns(), &anchor_to_t);
-    if (anchor != oldest) continue;
-    std::vector<double*> blocks = TimedFactorBlocks(*factor, anchor);
-    if (blocks.empty()) continue;
-    auto spec = std::make_unique<ResidualSpec>();
-    spec->cost.reset(factor->Create(anchor_to_t, options_.gravity, options_.use_imu));
-    spec->loss = factor->loss();
-    spec->blocks = std::move(blocks);
-    owned.push_back(std::move(spec));
+    if (auto spec = TimedFactorSpec(*factor, oldest)) owned.push_back(std::move(spec));
   }
   std::vector<double*> marginalize{oldest->pose};
   if (options_.use_imu) marginalize.push_back(oldest->speed_bias);

@@ -244,6 +244,11 @@ class SlidingWindowBackend {
   std::vector<double*> TimedFactorBlocks(const TimedFactor& factor, State* anchor) const;
   // The IMU, prior and timed-factor residuals of the whole window (reprojections excluded).
   std::vector<std::unique_ptr<ResidualSpec>> BuildStateResiduals() const;
+  // The prior as a residual (nullptr when there is none).
+  std::unique_ptr<ResidualSpec> PriorSpec() const;
+  // A timed factor as a residual on its anchor state, or nullptr when it cannot be used yet (or
+  // its anchor is not `only`, when given).
+  std::unique_ptr<ResidualSpec> TimedFactorSpec(const TimedFactor& factor, const State* only) const;
   const ceres::Manifold* ManifoldOf(const double* block) const;
   int SizeOf(const double* block) const;
 
