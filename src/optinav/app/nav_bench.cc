@@ -234,8 +234,19 @@ void WriteFlightPlot(const NavBenchOptions& o, const maploc::MapDatabase& db, co
     const fs::path stem = runs_dir / (r.flight + "_" + r.config);
     if (!fs::exists(stem.string() + ".tum")) continue;
     const Trajectory est = io::ReadTrajectory(stem.string() + ".tum");
+    // Each run's ENU origin (the map's centre; the start for the runs without a map).
+    geo::LatLon run_origin = origin;
+    if (std::ifstream stats(stem.string() + ".json"); stats) {
+      const nlohmann::json js = nlohmann::json::parse(stats);
+      run_origin = {js["origin"][0].get<double>(), js["origin"][1].get<double>()};
+    }
+    const geo::LocalEnu run_enu(run_origin, 0.0);
+    auto in_map_enu = [&](const Eigen::Vector3d& p) {
+      return enu.ToEnu(run_enu.FromEnu(Eigen::Vector3d(p.x(), p.y(), 0)), 0.0);
+    };
     report::MapPath path{r.config, c, {}, 1.5, r.config != "map"};
-    for (size_t i = 0; i < est.size(); i += 5) path.px.push_back(to_px(est.positions[i]));
+    for (size_t i = 0; i < est.size(); i += 5)
+      path.px.push_back(to_px(in_map_enu(est.positions[i])));
     plot.paths.push_back(path);
     // The error series from the run's statistics is not stored per pose; recompute from the
     // trajectory against the truth at its stamps.
@@ -250,7 +261,7 @@ void WriteFlightPlot(const NavBenchOptions& o, const maploc::MapDatabase& db, co
       while (g + 1 < gt.size() && gt.t_ns[g] < est.t_ns[i]) ++g;
       const Eigen::Vector3d truth = enu.ToEnu(sim_enu.FromEnu(gt.positions[g]), 0.0);
       series.x.push_back((est.t_ns[i] - gt.t_ns.front()) * 1e-9);
-      series.y.push_back((est.positions[i].head<2>() - truth.head<2>()).norm());
+      series.y.push_back((in_map_enu(est.positions[i]).head<2>() - truth.head<2>()).norm());
     }
     plot.chart.push_back(series);
   }
