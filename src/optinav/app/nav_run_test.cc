@@ -126,7 +126,8 @@ TEST_F(NavRunTest, WrongFixesAreRejected) {
   ASSERT_TRUE(a.error && b.error);
   std::printf(
       "wrong fixes: %zu injected, %zu accepted (0); RMSE %.2f m vs %.2f m clean "
-      "(<= 1.2x + 1 m)\n",
+      "(<= 1.5x + 2 m: fewer fixes cost accuracy on a 50 s flight; one accepted wrong fix "
+      "costs hundreds of metres)\n",
       b.stats.outliers_injected, b.stats.outliers_accepted, b.error->rmse_m, a.error->rmse_m);
   EXPECT_GE(b.stats.outliers_injected, 3u);
   EXPECT_EQ(b.stats.outliers_accepted, 0u);

@@ -250,7 +250,11 @@ struct MapAidedNavigator::Impl {
   std::optional<int64_t> last_fix_try_ns;
   std::optional<int64_t> rejecting_since_ns;
   double gate_scale = 1.0;
-  int odometry_rejections = 0;      // consecutive
+  int odometry_rejections = 0;  // consecutive
+  bool relocalize = false;
+  std::deque<std::pair<int64_t, bool>>
+      recent_fixes;  // found fixes of the last 20 s: refused?          // the gate refused fixes
+                     // for too long: initialise again
   std::optional<FixLog> candidate;  // initialisation: a global fix waiting for confirmation
   struct Gnss {
     int64_t t_ns;
@@ -536,12 +540,27 @@ struct MapAidedNavigator::Impl {
     FixLog log = Locate(t_ns, gray, prior);
     if (log.found) {
       const Eigen::Vector2d e = log.enu.head<2>() - predicted.position.head<2>();
+      // Relocalisation: when most fixes of the last 20 s are refused by the gate, the estimate,
+      // not the map, is wrong (a few wrong fixes cannot make most of them disagree). Start again
+      // from a global search confirmed by a second fix.
+      const auto refused_mostly = [&](bool refused) {
+        recent_fixes.emplace_back(t_ns, refused);
+        while (!recent_fixes.empty() && recent_fixes.front().first < t_ns - 20'000'000'000)
+          recent_fixes.pop_front();
+        size_t n_refused = 0;
+        for (const auto& [t, r] : recent_fixes) n_refused += r ? 1 : 0;
+        return recent_fixes.size() >= 10 && n_refused >= 0.75 * recent_fixes.size();
+      };
       const Eigen::Matrix2d s = p_xy + log.sigma_m * log.sigma_m * Eigen::Matrix2d::Identity();
       log.innovation_m = e.norm();
       log.chi2 = e.dot(s.ldlt().solve(e));
       if (options.gate_chi2 > 0 && log.chi2 > options.gate_chi2 * gate_scale * gate_scale) {
         log.reason = "gate";
         ++stats.fixes_rejected;
+        if (refused_mostly(true)) {
+          relocalize = true;
+          recent_fixes.clear();
+        }
         if (!rejecting_since_ns) rejecting_since_ns = t_ns;
         if ((t_ns - *rejecting_since_ns) * 1e-9 > options.reopen_after_s) {
           gate_scale *= 2.0;
@@ -551,6 +570,7 @@ struct MapAidedNavigator::Impl {
         log.accepted = true;
         ++stats.fixes_accepted;
         if (log.injected) ++stats.outliers_accepted;
+        refused_mostly(false);
         rejecting_since_ns.reset();
         gate_scale = std::max(1.0, gate_scale / 2.0);
         const double alt_sigma =
@@ -657,6 +677,15 @@ struct MapAidedNavigator::Impl {
     last_frame_ns = t_ns;
     // Keep one second of IMU before the newest frame.
     std::erase_if(imu, [&](const vio::TimedImuSample& s) { return s.t_ns < t_ns - 1'000'000'000; });
+    if (relocalize) {
+      spdlog::warn("nav: most map fixes of the last 20 s refused at t={} s, relocalising",
+                   t_ns * 1e-9);
+      relocalize = false;
+      const NavPose last = PoseOfNewest();
+      backend.reset();
+      ++stats.resets;
+      return last;
+    }
     const double sigma_h = std::sqrt(std::max(0.0, covariance(0, 0) + covariance(1, 1)));
     if (!estimate.world_from_body.translation.allFinite() || !estimate.velocity.allFinite() ||
         !(sigma_h < 5000.0)) {
