@@ -109,18 +109,6 @@ void RenderFlight(const NavBenchOptions& o, const std::string& waypoints, const 
   sim::RunSimulation(s);
 }
 
-// The true start of a flight (for the no-map and GNSS references).
-nav::NavStart TrueStart(const std::string& dir) {
-  const Trajectory gt = io::ReadTrajectory(
-      (fs::path(dir) / "mav0" / "state_groundtruth_estimate0" / "data.csv").string());
-  std::ifstream in(fs::path(dir) / "sim_complete.json");
-  const nlohmann::json j = nlohmann::json::parse(in);
-  const geo::LocalEnu enu(geo::LatLon{j["gnss_origin"][0], j["gnss_origin"][1]}, 0.0);
-  double roll, pitch, heading;
-  nav::AttitudeOfEnuFromBody(gt.rotations.front(), &roll, &pitch, &heading);
-  return {enu.FromEnu(gt.positions.front()), heading, 5.0, 3.0};
-}
-
 NavBenchRun RunOne(const NavBenchOptions& o, const std::string& map_path, const Flight& flight,
                    const std::string& config, const fs::path& runs_dir) {
   NavBenchRun run;
@@ -140,7 +128,7 @@ NavBenchRun RunOne(const NavBenchOptions& o, const std::string& map_path, const 
   }
   if (config == "no-map" || config == "gnss3") {
     st.no_map = true;
-    st.nav.start = TrueStart(flight.dir);
+    st.nav.start = ReadSimTruth(flight.dir).value().Start();
     st.gnss = config == "gnss3";
     st.gnss_sigma_m = 3.0;
   }
@@ -162,10 +150,8 @@ NavBenchRun RunOne(const NavBenchOptions& o, const std::string& map_path, const 
     run.outliers_accepted = r.stats.outliers_accepted;
     if (config == "gap60" && !r.errors_m.empty()) {
       // Gap times relative to the first nadir frame (the blanking's reference).
-      const Trajectory gt = io::ReadTrajectory(
-          (fs::path(flight.dir) / "mav0" / "state_groundtruth_estimate0" / "data.csv").string());
-      const int64_t first = gt.t_ns.front();
-      const int64_t gap_end = first + static_cast<int64_t>((kGapStartS + kGapDurationS) * 1e9);
+      const int64_t gap_end =
+          r.first_frame_ns + static_cast<int64_t>((kGapStartS + kGapDurationS) * 1e9);
       std::optional<int64_t> first_fix;
       for (const nav::FixLog& f : r.fixes)
         if (f.accepted && f.t_ns >= gap_end) {
@@ -209,13 +195,11 @@ void WriteFlightPlot(const NavBenchOptions& o, const maploc::MapDatabase& db, co
   auto to_px = [&](const Eigen::Vector3d& p) {
     return Eigen::Vector2d(db.transform.CrsToPixel(crs.FromLatLon(enu.FromEnu(p))) * scale);
   };
-  // Truth: the ground truth in the simulator's frame, through lat/lon.
+  // Truth: the ground truth in the simulator's frame, through lat/lon (read once per flight).
+  const SimTruth sim = ReadSimTruth(flight.dir).value();
+  const geo::LocalEnu sim_enu(sim.origin, 0.0);
+  const Trajectory& gt = sim.groundtruth;
   {
-    std::ifstream in(fs::path(flight.dir) / "sim_complete.json");
-    const nlohmann::json j = nlohmann::json::parse(in);
-    const geo::LocalEnu sim_enu(geo::LatLon{j["gnss_origin"][0], j["gnss_origin"][1]}, 0.0);
-    const Trajectory gt = io::ReadTrajectory(
-        (fs::path(flight.dir) / "mav0" / "state_groundtruth_estimate0" / "data.csv").string());
     report::MapPath truth{"truth", {20, 160, 60}, {}, 2.5, false};
     for (size_t i = 0; i < gt.size(); i += 50) {
       const Eigen::Vector3d p = enu.ToEnu(sim_enu.FromEnu(gt.positions[i]), 0.0);
@@ -250,11 +234,6 @@ void WriteFlightPlot(const NavBenchOptions& o, const maploc::MapDatabase& db, co
     plot.paths.push_back(path);
     // The error series from the run's statistics is not stored per pose; recompute from the
     // trajectory against the truth at its stamps.
-    std::ifstream in(fs::path(flight.dir) / "sim_complete.json");
-    const nlohmann::json j = nlohmann::json::parse(in);
-    const geo::LocalEnu sim_enu(geo::LatLon{j["gnss_origin"][0], j["gnss_origin"][1]}, 0.0);
-    const Trajectory gt = io::ReadTrajectory(
-        (fs::path(flight.dir) / "mav0" / "state_groundtruth_estimate0" / "data.csv").string());
     report::ChartSeries series{r.config + (r.config == "gap60" ? " (blank 40-100 s)" : ""), c};
     size_t g = 0;
     for (size_t i = 0; i < est.size(); ++i) {

@@ -64,6 +64,21 @@ std::optional<Eigen::Vector3d> PositionAt(const Trajectory& gt, int64_t t_ns) {
 
 }  // namespace
 
+std::optional<SimTruth> ReadSimTruth(const std::string& dataset) {
+  const auto origin = SimOrigin(dataset);
+  if (!origin) return std::nullopt;
+  const io::EurocDataset ds = io::OpenEurocDataset(dataset, {.check_images_exist = false});
+  if (ds.groundtruth_csv.empty()) return std::nullopt;
+  return SimTruth{*origin, io::ReadTrajectory(ds.groundtruth_csv)};
+}
+
+nav::NavStart SimTruth::Start() const {
+  const geo::LocalEnu enu(origin, 0.0);
+  double roll, pitch, heading;
+  nav::AttitudeOfEnuFromBody(groundtruth.rotations.front(), &roll, &pitch, &heading);
+  return {enu.FromEnu(groundtruth.positions.front()), heading, 5.0, 3.0};
+}
+
 NavRunReport RunNav(const NavRunSettings& st, const std::function<void(size_t, size_t)>& progress) {
   const std::string problem = st.Check();
   if (!problem.empty()) throw Error(problem);
@@ -162,6 +177,7 @@ NavRunReport RunNav(const NavRunSettings& st, const std::function<void(size_t, s
   report.wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
   report.duration_s = (frames[total - 1].t_ns - frames[0].t_ns) * 1e-9;
+  report.first_frame_ns = frames[0].t_ns;
   if (report.poses.empty())
     throw Error(fmt::format("no pose was estimated ({} nadir frames, {} map fixes tried, none "
                             "confirmed an initialisation)",

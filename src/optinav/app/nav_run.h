@@ -13,6 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "optinav/geometry/trajectory.h"
 #include "optinav/nav/map_aided_nav.h"
 
 namespace optinav::app {
@@ -54,8 +55,20 @@ struct NavRunReport {
   std::vector<double> errors_m;  // per pose, when `error`
   std::vector<double> altitude_errors_m;
   double wall_s = 0, duration_s = 0;
+  int64_t first_frame_ns = 0;  // the first nadir frame (the reference of `blank`)
   nlohmann::json ToJson() const;
 };
+
+// A simulator dataset's truth: its ENU origin (sim_complete.json "gnss_origin", beside mav0/ or
+// one folder up) and its ground truth in that frame. nullopt when the dataset has no such origin
+// or no ground truth.
+struct SimTruth {
+  geo::LatLon origin;
+  Trajectory groundtruth;
+  // The true start as `optinav nav --start` takes it (5 m, 3 deg).
+  nav::NavStart Start() const;
+};
+std::optional<SimTruth> ReadSimTruth(const std::string& dataset);
 
 // Throws Error on invalid settings, bad input (naming the file), and when no pose was estimated.
 // `progress(done, total)` after each nadir frame.

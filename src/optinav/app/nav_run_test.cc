@@ -67,23 +67,11 @@ class NavRunTest : public ::testing::Test {
   inline static fs::path* dir_ = nullptr;
 };
 
-// The flight's true start (position within metres, heading within degrees).
-nav::NavStart StartOf(const std::string& dataset) {
-  const Trajectory gt = io::ReadTrajectory(
-      (fs::path(dataset) / "mav0" / "state_groundtruth_estimate0" / "data.csv").string());
-  std::ifstream in(fs::path(dataset) / "sim_complete.json");
-  const auto j = nlohmann::json::parse(in);
-  const geo::LocalEnu enu(geo::LatLon{j["gnss_origin"][0], j["gnss_origin"][1]}, 0.0);
-  double roll, pitch, heading;
-  nav::AttitudeOfEnuFromBody(gt.rotations.front(), &roll, &pitch, &heading);
-  return {enu.FromEnu(gt.positions.front()), heading, 5.0, 3.0};
-}
-
 TEST_F(NavRunTest, MapFixesHoldTheFlight) {
   // From the given start the estimate follows the flight on map fixes + IMU + baro + odometry
   // (the global initialisation is measured by `optinav bench nav`: about a second per try).
   NavRunSettings st = Settings("map");
-  st.nav.start = StartOf(st.dataset);
+  st.nav.start = ReadSimTruth(st.dataset).value().Start();
   const NavRunReport r = RunNav(st);
   ASSERT_TRUE(r.error.has_value());
   std::printf(
@@ -120,7 +108,7 @@ TEST_F(NavRunTest, WrongFixesAreRejected) {
   // the clean run's. From a given start (the global search is the test above).
   NavRunSettings clean = Settings("clean");
   NavRunSettings bad = Settings("outliers");
-  clean.nav.start = bad.nav.start = StartOf(clean.dataset);
+  clean.nav.start = bad.nav.start = ReadSimTruth(clean.dataset).value().Start();
   bad.nav.inject_outlier_fraction = 0.1;
   const NavRunReport a = RunNav(clean), b = RunNav(bad);
   ASSERT_TRUE(a.error && b.error);

@@ -461,10 +461,6 @@ struct MapAidedNavigator::Impl {
     const double h_prev = previous.world_from_body.translation.z();
     const double h_cur = predicted.position.z();
     if (!(h_prev > 1) || !(h_cur > 1) || !(dt > 0)) return;
-    spdlog::trace("nav-homography {} {} {} {} {} {} {} {} {} {} {}", previous.t_ns, t_ns,
-                  step.prev_from_cur(0, 0), step.prev_from_cur(0, 1), step.prev_from_cur(0, 2),
-                  step.prev_from_cur(1, 0), step.prev_from_cur(1, 1), step.prev_from_cur(1, 2),
-                  step.prev_from_cur(2, 0), step.prev_from_cur(2, 1), step.prev_from_cur(2, 2));
     const Eigen::Matrix3d r_prev = previous.world_from_body.rotation.toRotationMatrix();
     const Eigen::Matrix3d r_cur = predicted.world_from_body_rotation.toRotationMatrix();
     const Eigen::Matrix3d body_from_cam = sensors.body_from_cam.rotation.toRotationMatrix();

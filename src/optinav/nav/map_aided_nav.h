@@ -98,9 +98,8 @@ struct NavOptions {
 };
 
 struct NavSensors {
-  camera::PinholeCamera camera;                         // the nadir camera
-  Rigid3d body_from_cam;                                // its mount (EuRoC T_BS)
-  Eigen::Vector3d lever_arm = Eigen::Vector3d::Zero();  // unused; the camera's T_BS carries it
+  camera::PinholeCamera camera;  // the nadir camera
+  Rigid3d body_from_cam;         // its mount (EuRoC T_BS)
 };
 
 // One estimated state (a nadir frame's time).
