@@ -68,6 +68,7 @@ struct MissionExperimentResult {
   MissionTimings timing_ms;
   double navigation_steps_per_second = 0;
   std::string out_dir;
+  std::string estimator;                 // options.mission.estimator
   nlohmann::json summary;                // as written to summary.json
   std::optional<HtmlReportResult> html;  // when options.html
 

@@ -17,6 +17,7 @@ namespace {
 // The flag values that are not app::MissionExperimentOptions fields as they are.
 struct MissionFlags {
   std::string start, target;
+  std::string nadir_camera = "640x480";
   bool no_odometry = false;
   cli::OutputDirOptions out;
 };
@@ -66,6 +67,17 @@ void AddMissionFlags(CLI::App& app, app::MissionExperimentOptions& a, MissionFla
   app.add_option("--altitude-variation", o.effects.altitude_variation,
                  "altitude change (+- fraction)")
       ->capture_default_str();
+  app.add_option("--estimator", o.estimator,
+                 "2d: the 2-D filter (fixes + frame odometry); nav: optinav nav's estimator "
+                 "(IMU + barometer + nadir camera + map fixes)")
+      ->check(CLI::IsMember({"2d", "nav"}))
+      ->capture_default_str();
+  app.add_option("--nadir-camera", f.nadir_camera, "nav: the nadir camera's frame size WxH")
+      ->capture_default_str();
+  app.add_option("--nadir-hfov", o.nadir.hfov_deg, "nav: its horizontal field of view (deg)")
+      ->capture_default_str();
+  app.add_option("--nadir-rate", o.nadir.rate_hz, "nav: its frame rate (Hz)")
+      ->capture_default_str();
   app.add_flag(
       "--no-odometry", f.no_odometry,
       "fixes only: the estimate is the latest fix, keep the last bearing when a fix fails");
@@ -84,6 +96,8 @@ int Run(app::MissionExperimentOptions& a, const MissionFlags& f) {
   a.out_dir = f.out.dir;
   a.force = f.out.force;
   a.mission.use_odometry = !f.no_odometry;
+  ParseFrameSize(f.nadir_camera, "--nadir-camera", 64, &a.mission.nadir.width,
+                 &a.mission.nadir.height);
   if ((f.start == "random") != (f.target == "random")) {
     throw cli::UsageError("give both --start and --target as LAT,LON, or both as 'random'",
                           "--start");

@@ -224,8 +224,10 @@ std::string NavOptions::Check() const {
     return "need 0 < min_prior_radius_m <= max_local_radius_m";
   if (!(init_confirm_m > 0) || !(init_velocity_sigma_m_s > 0) || !(init_tilt_sigma_deg > 0))
     return "initialisation sigmas must be > 0";
-  if (start && !(start->position_sigma_m > 0 && start->heading_sigma_deg > 0))
+  if (start && !(start->position_sigma_m > 0 && start->heading_sigma_deg > 0 &&
+                 start->velocity_sigma_m_s > 0))
     return "start sigmas must be > 0";
+  if (start && start->velocity && !start->velocity->allFinite()) return "start velocity not finite";
   return "";
 }
 
@@ -380,8 +382,10 @@ struct MapAidedNavigator::Impl {
       const NavStart& st = *options.start;
       Eigen::Vector3d p = enu.ToEnu(st.position, 0.0);
       p.z() = baro_alt.value_or(0.0);
-      Start(t_ns, p, EnuFromBodyOfAttitude(0, 0, st.heading_deg), Eigen::Vector3d::Zero(),
-            st.position_sigma_m, st.heading_sigma_deg * kDeg, options.init_velocity_sigma_m_s);
+      Start(t_ns, p, EnuFromBodyOfAttitude(st.roll_deg, st.pitch_deg, st.heading_deg),
+            st.velocity.value_or(Eigen::Vector3d::Zero()), st.position_sigma_m,
+            st.heading_sigma_deg * kDeg,
+            st.velocity ? st.velocity_sigma_m_s : options.init_velocity_sigma_m_s);
       return;
     }
     if (!locator) return;

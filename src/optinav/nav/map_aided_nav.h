@@ -46,6 +46,13 @@ struct NavStart {
   double heading_deg = 0;  // yaw, clockwise from north
   double position_sigma_m = 10;
   double heading_sigma_deg = 5;
+  // The attitude at the start (an autopilot's AHRS; level when unknown), known to
+  // NavOptions::init_tilt_sigma_deg.
+  double roll_deg = 0, pitch_deg = 0;
+  // The velocity at the start (ENU m/s; e.g. the air speed along the heading, the wind unknown)
+  // and its sigma per axis; unset: at rest, known to NavOptions::init_velocity_sigma_m_s.
+  std::optional<Eigen::Vector3d> velocity;
+  double velocity_sigma_m_s = 5;
 };
 
 struct NavOptions {

@@ -11,6 +11,7 @@
 #include "optinav/geometry/angles.h"
 #include "optinav/maploc/aerial_camera.h"
 #include "optinav/maploc/frame_synth.h"
+#include "optinav/nav/internal/mission_nav.h"
 #include "optinav/util/timer.h"
 
 namespace optinav::nav {
@@ -31,7 +32,12 @@ Eigen::Vector2d RotateFrameToMap(double theta, const Eigen::Vector2d& v) {
 
 struct Mission::Impl {
   Impl(const maploc::MapDatabase& d, const geo::GeoRaster& f, const maploc::LocateOptions& lo)
-      : db(d), frames(f), locator(d, lo), map_crs(d.crs_wkt), frames_crs(f.crs_wkt()) {
+      : db(d),
+        frames(f),
+        locate_options(lo),
+        locator(d, lo),
+        map_crs(d.crs_wkt),
+        frames_crs(f.crs_wkt()) {
     const double hfov = db.options.hfov_deg * kDeg;
     focal = 0.5 * db.options.frame_width / std::tan(0.5 * hfov);
     camera = camera::PinholeCamera::FromHorizontalFov(db.options.frame_width,
@@ -53,6 +59,7 @@ struct Mission::Impl {
 
   const maploc::MapDatabase& db;
   const geo::GeoRaster& frames;
+  maploc::LocateOptions locate_options;
   maploc::Locator locator;
   geo::CrsTransform map_crs, frames_crs;
   double focal = 0, frames_gsd = 0;
@@ -104,8 +111,14 @@ std::string Mission::Check(const MissionOptions& o) const {
   if (!(o.step_s > 0 && o.step_s <= 10)) {
     return fmt::format("step time must be in (0, 10] s, got {}", o.step_s);
   }
+  if (o.estimator != "2d" && o.estimator != "nav") {
+    return fmt::format("estimator must be 2d or nav, got '{}'", o.estimator);
+  }
+  if (o.estimator == "nav") {
+    if (const std::string e = CheckNavMission(impl_->db, o); !e.empty()) return e;
+  }
   const double footprint = alt / impl_->focal * impl_->db.options.frame_width;
-  if (o.speed_m_s * o.step_s > 0.3 * footprint) {
+  if (o.estimator == "2d" && o.speed_m_s * o.step_s > 0.3 * footprint) {
     return fmt::format(
         "speed x step = {:.0f} m per frame is more than 30 % of the camera footprint ({:.0f} m): "
         "consecutive frames would not overlap enough; lower --speed or the step time",
@@ -142,6 +155,8 @@ std::string Mission::Check(const MissionOptions& o) const {
 MissionResult Mission::Run(const MissionOptions& o) {
   if (const std::string e = Check(o); !e.empty()) throw Error(e);
   Impl& im = *impl_;
+  if (o.estimator == "nav")
+    return RunNavMission(im.db, im.frames, im.frames_gsd, im.locate_options, o);
   maploc::Locator& locator = im.locator;
   const double map_gsd = im.db.map_gsd_m;
   const double altitude = o.altitude_m > 0 ? o.altitude_m : im.db.options.altitude_m;

@@ -22,6 +22,9 @@
 #include "optinav/maploc/locator.h"
 #include "optinav/nav/frame_effects.h"
 #include "optinav/nav/internal/frame_odometry.h"
+#include "optinav/nav/map_aided_nav.h"
+#include "optinav/sim/rig.h"
+#include "optinav/sim/sensors.h"
 
 namespace optinav::nav {
 
@@ -52,12 +55,26 @@ struct MissionOptions {
   int global_after_failures = 4;       // consecutive steps without an accepted fix -> search all
   uint64_t seed = 1;
   bool keep_frames = false;  // keep every frame in the result (for debugging/tests)
+
+  // The navigation: "2d" (the filter above, one frame of the map's camera every step_s) or "nav"
+  // (MapAidedNavigator: a 200 Hz IMU, a barometer and the nadir camera below at its own rate,
+  // with map fixes; the true vehicle turns at a commanded rate with a lag and banks as it turns,
+  // nav/internal/closed_loop_flight.h; guidance every frame on the estimated course). With "nav",
+  // compass_bias_deg is the error of the start heading given to the navigator,
+  // attitude_noise_deg the error of its start roll and pitch (the AHRS), step_s the
+  // interval of the step log, and use_odometry switches the navigator's visual odometry.
+  std::string estimator = "2d";
+  sim::NadirCameraOptions nadir{.enabled = true};  // nav: 640x480, 90 deg, 5 Hz
+  NavOptions nav;                                  // nav: its start is set per run
+  sim::ImuOptions imu;                             // nav: the simulated IMU (200 Hz)
+  sim::BaroOptions baro{.enabled = true};          // nav: the simulated barometer (20 Hz)
 };
 
 struct StepTimes {
   double synthesis_ms = 0;                                       // simulation (not navigation)
   double extraction_ms = 0, matching_ms = 0, estimation_ms = 0;  // the map fix (the thesis's rows)
   double odometry_ms = 0;
+  double locate_ms = 0;      // estimator nav: the map fixes, timed whole (not split in stages)
   double navigation_ms = 0;  // everything the drone computes: fix + odometry + filter + guidance
 };
 

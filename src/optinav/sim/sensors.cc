@@ -51,39 +51,47 @@ std::string ImuOptions::Check() const {
   return "";
 }
 
+ImuSensor::ImuSensor(const ImuOptions& options, uint64_t seed)
+    : options_(options), rng_(seed ^ 0x1a2b3c4d5e6f7788ull) {
+  const double dt = 1.0 / options.rate_hz;
+  if (!options.noise_free) {
+    bg_ = Gaussian3(rng_, options.initial_gyro_bias_sigma);
+    ba_ = Gaussian3(rng_, options.initial_accel_bias_sigma);
+  }
+  sg_ = options.gyroscope_noise_density * std::sqrt(options.rate_hz);
+  sa_ = options.accelerometer_noise_density * std::sqrt(options.rate_hz);
+  wg_ = options.gyroscope_random_walk * std::sqrt(dt);
+  wa_ = options.accelerometer_random_walk * std::sqrt(dt);
+}
+
+ImuMeasurement ImuSensor::Measure(const BodyState& s) {
+  ImuMeasurement m;
+  m.t_ns = s.t_ns;
+  m.gyro_rad_s = s.angular_velocity_in_body;
+  m.accel_m_s2 = s.world_from_body.rotation.conjugate() *
+                 (s.acceleration_in_world + Eigen::Vector3d(0, 0, kGravity));
+  if (!options_.noise_free) {
+    m.gyro_rad_s += bg_ + Gaussian3(rng_, sg_);
+    m.accel_m_s2 += ba_ + Gaussian3(rng_, sa_);
+    m.gyro_bias = bg_;
+    m.accel_bias = ba_;
+    bg_ += Gaussian3(rng_, wg_);
+    ba_ += Gaussian3(rng_, wa_);
+  }
+  return m;
+}
+
 std::vector<ImuMeasurement> SimulateImu(const BodyTrajectory& trajectory, const ImuOptions& options,
                                         uint64_t seed) {
-  std::mt19937_64 rng(seed ^ 0x1a2b3c4d5e6f7788ull);
+  ImuSensor sensor(options, seed);
   const double dt = 1.0 / options.rate_hz;
-  const bool noisy = !options.noise_free;
-  Eigen::Vector3d bg = Eigen::Vector3d::Zero(), ba = Eigen::Vector3d::Zero();
-  if (noisy) {
-    bg = Gaussian3(rng, options.initial_gyro_bias_sigma);
-    ba = Gaussian3(rng, options.initial_accel_bias_sigma);
-  }
-  const double sg = options.gyroscope_noise_density * std::sqrt(options.rate_hz);
-  const double sa = options.accelerometer_noise_density * std::sqrt(options.rate_hz);
-  const double wg = options.gyroscope_random_walk * std::sqrt(dt);
-  const double wa = options.accelerometer_random_walk * std::sqrt(dt);
   std::vector<ImuMeasurement> out;
   for (int64_t k = 0;; ++k) {
     const int64_t t = trajectory.start_ns() + static_cast<int64_t>(std::llround(k * dt * 1e9));
     if (t > trajectory.end_ns()) break;
-    const BodyState s = trajectory.At(t);
-    ImuMeasurement m;
-    m.t_ns = t;
-    m.gyro_rad_s = s.angular_velocity_in_body;
-    m.accel_m_s2 = s.world_from_body.rotation.conjugate() *
-                   (s.acceleration_in_world + Eigen::Vector3d(0, 0, kGravity));
-    if (noisy) {
-      m.gyro_rad_s += bg + Gaussian3(rng, sg);
-      m.accel_m_s2 += ba + Gaussian3(rng, sa);
-      m.gyro_bias = bg;
-      m.accel_bias = ba;
-      bg += Gaussian3(rng, wg);
-      ba += Gaussian3(rng, wa);
-    }
-    out.push_back(m);
+    BodyState s = trajectory.At(t);
+    s.t_ns = t;
+    out.push_back(sensor.Measure(s));
   }
   return out;
 }
@@ -102,20 +110,27 @@ std::string BaroOptions::Check() const {
   return "";
 }
 
+BaroSensor::BaroSensor(const BaroOptions& options, uint64_t seed)
+    : options_(options), rng_(seed ^ 0x5b4a3c2d1e0f9687ull) {
+  bias_ = options.initial_bias_sigma_m * normal_(rng_);
+  walk_ = options.bias_random_walk * std::sqrt(1.0 / options.rate_hz);
+}
+
+BaroMeasurement BaroSensor::Measure(int64_t t_ns, double z) {
+  const BaroMeasurement m{t_ns, z + bias_ + options_.noise_sigma_m * normal_(rng_), bias_};
+  bias_ += walk_ * normal_(rng_);
+  return m;
+}
+
 std::vector<BaroMeasurement> SimulateBaro(const BodyTrajectory& trajectory,
                                           const BaroOptions& options, uint64_t seed) {
-  std::mt19937_64 rng(seed ^ 0x5b4a3c2d1e0f9687ull);
-  std::normal_distribution<double> normal(0.0, 1.0);
+  BaroSensor sensor(options, seed);
   const double dt = 1.0 / options.rate_hz;
-  double bias = options.initial_bias_sigma_m * normal(rng);
-  const double walk = options.bias_random_walk * std::sqrt(dt);
   std::vector<BaroMeasurement> out;
   for (int64_t k = 0;; ++k) {
     const int64_t t = trajectory.start_ns() + static_cast<int64_t>(std::llround(k * dt * 1e9));
     if (t > trajectory.end_ns()) break;
-    const double z = trajectory.At(t).world_from_body.translation.z();
-    out.push_back({t, z + bias + options.noise_sigma_m * normal(rng), bias});
-    bias += walk * normal(rng);
+    out.push_back(sensor.Measure(t, trajectory.At(t).world_from_body.translation.z()));
   }
   return out;
 }

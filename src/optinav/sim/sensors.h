@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <functional>
 #include <optional>
+#include <random>
 #include <string>
 #include <utility>
 #include <vector>
@@ -46,6 +47,22 @@ struct ImuMeasurement {
   Eigen::Vector3d accel_bias = Eigen::Vector3d::Zero();
 };
 
+// The IMU's noise and biases sample by sample, for trajectories that are not known in advance
+// (the closed-loop flights of `optinav mission --estimator nav`). SimulateImu draws the same
+// numbers: a sensor fed the same states gives the same measurements.
+class ImuSensor {
+ public:
+  ImuSensor(const ImuOptions& options, uint64_t seed);
+  // The measurement of the state at its time (call at the options' rate, in time order).
+  ImuMeasurement Measure(const BodyState& state);
+
+ private:
+  ImuOptions options_;
+  std::mt19937_64 rng_;
+  Eigen::Vector3d bg_ = Eigen::Vector3d::Zero(), ba_ = Eigen::Vector3d::Zero();
+  double sg_ = 0, sa_ = 0, wg_ = 0, wa_ = 0;
+};
+
 // Samples at start + k / rate for every k with t <= end.
 std::vector<ImuMeasurement> SimulateImu(const BodyTrajectory& trajectory, const ImuOptions& options,
                                         uint64_t seed);
@@ -66,6 +83,20 @@ struct BaroMeasurement {
   int64_t t_ns = 0;
   double altitude_m = 0;
   double bias_m = 0;  // the true bias at this sample
+};
+
+// The barometer sample by sample (as ImuSensor); SimulateBaro draws the same numbers.
+class BaroSensor {
+ public:
+  BaroSensor(const BaroOptions& options, uint64_t seed);
+  // The measurement of a body at height z (world) at time t (call at the options' rate).
+  BaroMeasurement Measure(int64_t t_ns, double z);
+
+ private:
+  BaroOptions options_;
+  std::mt19937_64 rng_;
+  std::normal_distribution<double> normal_{0.0, 1.0};
+  double bias_ = 0, walk_ = 0;
 };
 
 // Samples at start + k / rate for every k with t <= end.
