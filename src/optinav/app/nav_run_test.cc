@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include "optinav/geo/geo.h"
 #include "optinav/io/text_parse.h"
 #include "optinav/io/trajectory_io.h"
 #include "optinav/maploc/map_db.h"
@@ -120,6 +121,29 @@ TEST_F(NavRunTest, WrongFixesAreRejected) {
   EXPECT_GE(b.stats.outliers_injected, 3u);
   EXPECT_EQ(b.stats.outliers_accepted, 0u);
   EXPECT_LE(b.error->rmse_m, 1.5 * a.error->rmse_m + 2.0);
+}
+
+TEST_F(NavRunTest, AWrongStartIsRelocalisedAtTheAgreeingFixes) {
+  // A start 150 m off that claims 5 m: the gate refuses the first fixes, they agree on one
+  // offset, and the window restarts at the fix instead of following a wrong estimate (or
+  // restarting at the given start again).
+  NavRunSettings st = Settings("wrong_start");
+  nav::NavStart start = ReadSimTruth(st.dataset).value().Start();
+  start.position = geo::GeodesicDirect(start.position, 45.0, 150.0);
+  start.position_sigma_m = 5.0;
+  st.nav.start = start;
+  const NavRunReport r = RunNav(st);
+  ASSERT_TRUE(r.error.has_value());
+  double late_max = 0;  // the last half of the flight
+  for (size_t k = r.errors_m.size() / 2; k < r.errors_m.size(); ++k)
+    late_max = std::max(late_max, r.errors_m[k]);
+  std::printf(
+      "wrong start (150 m off, sigma 5 m): %zu reset(s) (>= 1), first error %.1f m, last half max "
+      "%.1f m (< 20), final %.1f m\n",
+      r.stats.resets, r.errors_m.front(), late_max, r.error->final_m);
+  EXPECT_GT(r.errors_m.front(), 100.0);
+  EXPECT_GE(r.stats.resets, 1u);
+  EXPECT_LT(late_max, 20.0);
 }
 
 TEST_F(NavRunTest, BadInputIsNamed) {

@@ -253,10 +253,23 @@ struct MapAidedNavigator::Impl {
   std::optional<int64_t> rejecting_since_ns;
   double gate_scale = 1.0;
   int odometry_rejections = 0;  // consecutive
-  bool relocalize = false;
-  std::deque<std::pair<int64_t, bool>>
-      recent_fixes;  // found fixes of the last 20 s: refused?          // the gate refused fixes
-                     // for too long: initialise again
+  bool relocalize = false;      // the gate refused most fixes for too long: start again
+  struct RecentFix {
+    int64_t t_ns;
+    bool refused;
+    Eigen::Vector2d innovation;  // the fix minus the prediction (m)
+    double sigma_m;
+  };
+  std::deque<RecentFix> recent_fixes;  // found fixes of the last 20 s
+  // Relocalisation: the fix to restart at (the last refused fixes agreed on one offset from the
+  // estimate: the estimate drifted, the map did not), and otherwise where to search around.
+  std::optional<FixLog> restart_fix;
+  struct SearchHint {
+    int64_t t_ns;
+    Eigen::Vector2d position;
+    double sigma_m;
+  };
+  std::optional<SearchHint> search_hint;
   std::optional<FixLog> candidate;  // initialisation: a global fix waiting for confirmation
   struct Gnss {
     int64_t t_ns;
@@ -351,9 +364,10 @@ struct MapAidedNavigator::Impl {
     return out;
   }
 
+  // `bias`, `baro_bias_m`: what a restarted window keeps of the previous one (zero at first).
   void Start(int64_t t_ns, const Eigen::Vector3d& position, const Eigen::Matrix3d& rotation,
              const Eigen::Vector3d& velocity, double position_sigma, double yaw_sigma_rad,
-             double velocity_sigma) {
+             double velocity_sigma, const vio::ImuBias& bias = {}, double baro_bias_m = 0) {
     backend_options.prior_position_sigma_m = position_sigma;
     backend_options.prior_yaw_sigma_rad = yaw_sigma_rad;
     backend_options.prior_tilt_sigma_rad = options.init_tilt_sigma_deg * kDeg;
@@ -362,10 +376,12 @@ struct MapAidedNavigator::Impl {
     s.t_ns = t_ns;
     s.world_from_body = {Eigen::Quaterniond(rotation), position};
     s.velocity = velocity;
+    s.bias = bias;
     backend->Initialize(s, {}, -1, velocity_sigma, -1);
-    bias_block = backend->AddGlobalBlock(
-        Eigen::VectorXd::Zero(1), Eigen::VectorXd::Constant(1, options.baro_bias_sigma_m),
-        Eigen::VectorXd::Constant(1, options.baro_bias_walk_m_per_sqrt_s));
+    bias_block =
+        backend->AddGlobalBlock(Eigen::VectorXd::Constant(1, baro_bias_m),
+                                Eigen::VectorXd::Constant(1, options.baro_bias_sigma_m),
+                                Eigen::VectorXd::Constant(1, options.baro_bias_walk_m_per_sqrt_s));
     covariance = backend->NewestCovariance();
     stats.initialized_at_ns = stats.initialized_at_ns.value_or(t_ns);
     gate_scale = 1.0;
@@ -378,7 +394,7 @@ struct MapAidedNavigator::Impl {
 
   void TryInitialize(int64_t t_ns, const cv::Mat& gray) {
     const std::optional<double> baro_alt = BaroAt(t_ns);
-    if (options.start) {
+    if (options.start && !stats.initialized_at_ns) {  // only the first time
       const NavStart& st = *options.start;
       Eigen::Vector3d p = enu.ToEnu(st.position, 0.0);
       p.z() = baro_alt.value_or(0.0);
@@ -393,6 +409,17 @@ struct MapAidedNavigator::Impl {
     if (baro_alt && *baro_alt > 0) {
       prior.altitude_m = *baro_alt;
       prior.altitude_sigma_rel = 0.1;
+    }
+    if (search_hint && !candidate) {
+      // After a relocalisation: around where the estimate was, as far as it may have drifted
+      // (3 sigma + 300 m) plus 40 m/s since; a global search beyond the local limit.
+      const double dt = (t_ns - search_hint->t_ns) * 1e-9;
+      const double radius = 3.0 * search_hint->sigma_m + 300.0 + 40.0 * dt;
+      if (radius <= options.max_local_radius_m) {
+        prior.position =
+            enu.FromEnu(Eigen::Vector3d(search_hint->position.x(), search_hint->position.y(), 0));
+        prior.radius_m = radius;
+      }
     }
     if (candidate) {
       const double dt = (t_ns - candidate->t_ns) * 1e-9;
@@ -442,6 +469,7 @@ struct MapAidedNavigator::Impl {
     odometry_rejections = 0;
     Start(t_ns, p, rotation, velocity, log.sigma_m, 5 * kDeg, velocity_sigma);
     candidate.reset();
+    search_hint.reset();
     fixes.push_back(log);
   }
 
@@ -544,12 +572,23 @@ struct MapAidedNavigator::Impl {
       // not the map, is wrong (a few wrong fixes cannot make most of them disagree). Start again
       // from a global search confirmed by a second fix.
       const auto refused_mostly = [&](bool refused) {
-        recent_fixes.emplace_back(t_ns, refused);
-        while (!recent_fixes.empty() && recent_fixes.front().first < t_ns - 20'000'000'000)
+        recent_fixes.push_back({t_ns, refused, e, log.sigma_m});
+        while (!recent_fixes.empty() && recent_fixes.front().t_ns < t_ns - 20'000'000'000)
           recent_fixes.pop_front();
         size_t n_refused = 0;
-        for (const auto& [t, r] : recent_fixes) n_refused += r ? 1 : 0;
+        for (const RecentFix& f : recent_fixes) n_refused += f.refused ? 1 : 0;
         return recent_fixes.size() >= 10 && n_refused >= 0.75 * recent_fixes.size();
+      };
+      // The last n fixes were refused and put the vehicle at the same offset from the
+      // estimate (within 3 sigma + 20 m of this one's): consistent with each other, so the
+      // estimate is what is off.
+      const auto refused_consistently = [&](size_t n) {
+        if (recent_fixes.size() < n) return false;
+        for (size_t k = recent_fixes.size() - n; k < recent_fixes.size(); ++k) {
+          const RecentFix& f = recent_fixes[k];
+          if (!f.refused || (f.innovation - e).norm() > 3.0 * log.sigma_m + 20.0) return false;
+        }
+        return true;
       };
       const Eigen::Matrix2d s = p_xy + log.sigma_m * log.sigma_m * Eigen::Matrix2d::Identity();
       log.innovation_m = e.norm();
@@ -557,8 +596,12 @@ struct MapAidedNavigator::Impl {
       if (options.gate_chi2 > 0 && log.chi2 > options.gate_chi2 * gate_scale * gate_scale) {
         log.reason = "gate";
         ++stats.fixes_rejected;
-        if (refused_mostly(true)) {
+        // Relocalise when most fixes of the last 20 s were refused (at the last fix when the
+        // last 3 agree), or at once when the last 5 in a row agree.
+        const bool mostly = refused_mostly(true);
+        if (mostly || refused_consistently(5)) {
           relocalize = true;
+          if (refused_consistently(3)) restart_fix = log;
           recent_fixes.clear();
         }
         if (!rejecting_since_ns) rejecting_since_ns = t_ns;
@@ -678,12 +721,33 @@ struct MapAidedNavigator::Impl {
     // Keep one second of IMU before the newest frame.
     std::erase_if(imu, [&](const vio::TimedImuSample& s) { return s.t_ns < t_ns - 1'000'000'000; });
     if (relocalize) {
-      spdlog::warn("nav: most map fixes of the last 20 s refused at t={} s, relocalising",
-                   t_ns * 1e-9);
       relocalize = false;
       const NavPose last = PoseOfNewest();
-      backend.reset();
       ++stats.resets;
+      if (restart_fix && restart_fix->t_ns == t_ns) {
+        // Restart at the fix with the estimate's attitude, velocity and biases (the position
+        // drifted, the rest is likely sound; the velocity loosened).
+        spdlog::warn(
+            "nav: most map fixes of the last 20 s refused at t={} s and the last ones agree: "
+            "restarting at the fix ({:.0f} m from the estimate)",
+            t_ns * 1e-9, restart_fix->innovation_m);
+        Eigen::Vector3d p = last.world_from_body.translation;
+        p.head<2>() = restart_fix->enu.head<2>();
+        const double yaw_sigma = std::max(5.0 * kDeg, last.yaw_sigma_deg * kDeg);
+        Start(t_ns, p, last.world_from_body.rotation.toRotationMatrix(), last.velocity,
+              restart_fix->sigma_m, yaw_sigma, 5.0, backend->Newest().bias, last.baro_bias_m);
+        restart_fix.reset();
+        return PoseOfNewest();
+      }
+      spdlog::warn(
+          "nav: most map fixes of the last 20 s refused at t={} s, relocalising by a search "
+          "around the estimate",
+          t_ns * 1e-9);
+      restart_fix.reset();
+      const double sigma =
+          std::sqrt(std::max(0.0, last.position_covariance(0, 0) + last.position_covariance(1, 1)));
+      search_hint = SearchHint{t_ns, last.world_from_body.translation.head<2>(), sigma};
+      backend.reset();
       return last;
     }
     const double sigma_h = std::sqrt(std::max(0.0, covariance(0, 0) + covariance(1, 1)));
