@@ -40,6 +40,9 @@ cv::Mat ToGray(const cv::Mat& frame) {
   return gray;
 }
 
+// Below this grey-level standard deviation a frame carries no structure to correlate.
+constexpr double kMinFrameContrast = 1.0;
+
 // Doubled-angle unit gradient field (complex, 2 channels), weighted down in flat areas; the
 // doubling makes it invariant to contrast inversion (water darker one year, brighter the next).
 cv::Mat OrientationField(const cv::Mat& gray, const cv::Mat& valid) {
@@ -793,6 +796,19 @@ LocateResult Locator::CorrelationOn(const PreparedFrame& pf, const Prior& prior)
   Timer& stage = a.stage;
   if (!pf.error.empty()) return a.Fail(pf.error);
   const cv::Mat& gray = pf.gray;
+  // A frame without contrast (a blank frame, a lens cap, a white-out) has no orientation field
+  // to correlate, but the borders of its rectification do: refuse it rather than match them
+  // (the contrast over the frame's own pixels).
+  cv::Scalar mean, stddev;
+  if (pf.valid.empty()) {
+    cv::meanStdDev(gray, mean, stddev);
+  } else {
+    cv::meanStdDev(gray, mean, stddev, pf.valid);
+  }
+  if (stddev[0] < kMinFrameContrast) {
+    return a.Fail(fmt::format("textureless frame: contrast (grey-level std) {:.2f} < {}", stddev[0],
+                              kMinFrameContrast));
+  }
   const geo::GeoRaster* ortho = im.Ortho();
   if (!ortho) {
     return a.Fail("orthophoto unavailable for orientation correlation: " + im.ortho_error);

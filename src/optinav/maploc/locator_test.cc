@@ -107,6 +107,19 @@ TEST_F(Aero1Map, BadFramesAreNotLocalizedWithAReason) {
   EXPECT_NE(black.reason.find("too few features"), std::string::npos) << black.reason;
   const LocateResult empty = locator.Locate(cv::Mat());
   EXPECT_FALSE(empty.localized);
+  // A uniform frame (a blanked camera) is refused by the correlation too, with or without a
+  // prior: it used to match the borders of its own warps (issue 20's 60 s gap).
+  Prior around;
+  around.position = locator.PixelToLatLon({320, 240});
+  around.radius_m = 100;
+  around.roll_deg = 6;  // rectified: the warp leaves borders
+  around.pitch_deg = -4;
+  for (const Prior& p : {Prior{}, around}) {
+    const LocateResult grey =
+        locator.LocateByOrientationCorrelation(cv::Mat(180, 240, CV_8UC1, cv::Scalar(128)), p);
+    EXPECT_FALSE(grey.localized);
+    EXPECT_NE(grey.reason.find("textureless frame"), std::string::npos) << grey.reason;
+  }
   // A frame of another place (a cluttered indoor scene) does not match the map.
   const cv::Mat other = cv::imread(
       (testing::SharedDataDir() / "images" / "box_in_scene.png").string(), cv::IMREAD_GRAYSCALE);
