@@ -203,16 +203,14 @@ MissionResult RunNavMission(const maploc::MapDatabase& db, const geo::GeoRaster&
     cv::Mat frame = maploc::RenderAerialFrame(frames, frames_gsd_m, pose, cam);
     ApplyPhotometricEffects(frame, o.effects, 0.0, effects_rng);
     if (o.weather) {
-      FrameView view;
-      view.t_ns = t;
-      view.position_enu = p;
-      view.heading_deg = heading;
-      view.roll_deg = roll;
-      view.pitch_deg = pitch;
-      view.focal_px = cam.fx;
-      view.width = cam.width;
-      view.height = cam.height;
-      o.weather(frame, view);
+      o.weather(frame, {.t_ns = t,
+                        .position_enu = p,
+                        .heading_deg = heading,
+                        .roll_deg = roll,
+                        .pitch_deg = pitch,
+                        .focal_px = cam.fx,
+                        .width = cam.width,
+                        .height = cam.height});
     }
     step_times.synthesis_ms += synth.ElapsedMs();
 

@@ -44,7 +44,6 @@ class ClosedLoopFlight {
   void AdvanceTo(int64_t t_ns);
   // The state at the current time.
   sim::BodyState State() const;
-  double max_turn_rate() const { return max_rate_; }
   // The true heading of the nose (deg clockwise from north) at the current time.
   double heading_deg() const;
 
