@@ -72,10 +72,10 @@ TEST_F(MissionExperimentTest, SeededRunsReachTheTargetAndWriteTheSummary) {
   EXPECT_EQ(r.fixes_found, 52);
   EXPECT_EQ(r.fixes_accepted, 52);
   ASSERT_TRUE(r.fix_error_m.has_value());
-  EXPECT_NEAR(r.fix_error_m->median, 4.392, 0.01);
-  EXPECT_NEAR(r.fix_error_m->p95, 8.136, 0.01);
-  EXPECT_NEAR(r.estimate_error_m.median, 4.260, 0.01);
-  EXPECT_NEAR(r.final_distance_m.max, 5.447, 0.01);
+  EXPECT_NEAR(r.fix_error_m->median, 4.569, 0.01);
+  EXPECT_NEAR(r.fix_error_m->p95, 7.682, 0.01);
+  EXPECT_NEAR(r.estimate_error_m.median, 4.621, 0.01);
+  EXPECT_NEAR(r.final_distance_m.max, 5.216, 0.01);
   // An even count: the median is the mean of the two middle values.
   EXPECT_DOUBLE_EQ(r.final_distance_m.median, r.final_distance_m.mean);
   for (const MissionRunOutcome& run : r.runs) {
@@ -155,8 +155,8 @@ TEST_F(MissionExperimentTest, SeededRunsReachTheTargetAndWriteTheSummary) {
   EXPECT_NE(FormatMissionSummary(r).find("reached 2/2 (within 50 m)"), std::string::npos);
   EXPECT_EQ(FormatMissionRunHeader().substr(0, 14), " run    dist_m");
   EXPECT_EQ(FormatMissionRunRow(r.runs[0]),
-            "   1      1961     26      yes        2.8     1.00       4.17\n");
-  EXPECT_NE(FormatMissionSummary(r).find("fix error median 4.39 m (1.10 map px), p95 8.14 m"),
+            "   1      1961     26      yes        1.8     1.00       4.87\n");
+  EXPECT_NE(FormatMissionSummary(r).find("fix error median 4.57 m (1.14 map px), p95 7.68 m"),
             std::string::npos)
       << FormatMissionSummary(r);
 

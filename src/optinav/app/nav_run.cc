@@ -62,6 +62,18 @@ std::optional<Eigen::Vector3d> PositionAt(const Trajectory& gt, int64_t t_ns) {
   return (1 - a) * gt.positions[i - 1] + a * gt.positions[i];
 }
 
+// The yaw of the ground-truth sample nearest to t_ns (degrees; the truth is sampled at the IMU
+// rate).
+std::optional<double> HeadingAt(const Trajectory& gt, int64_t t_ns) {
+  if (gt.empty() || t_ns < gt.t_ns.front() || t_ns > gt.t_ns.back()) return std::nullopt;
+  size_t i =
+      static_cast<size_t>(std::lower_bound(gt.t_ns.begin(), gt.t_ns.end(), t_ns) - gt.t_ns.begin());
+  if (i > 0 && (i == gt.t_ns.size() || t_ns - gt.t_ns[i - 1] < gt.t_ns[i] - t_ns)) --i;
+  double roll, pitch, heading;
+  nav::AttitudeOfEnuFromBody(gt.rotations[i], &roll, &pitch, &heading);
+  return heading;
+}
+
 }  // namespace
 
 std::optional<SimTruth> ReadSimTruth(const std::string& dataset) {
@@ -190,7 +202,7 @@ NavRunReport RunNav(const NavRunSettings& st, const std::function<void(size_t, s
       const Trajectory gt = io::ReadTrajectory(ds.groundtruth_csv);
       const geo::LocalEnu sim_enu(*sim_origin, 0.0), nav_enu(report.origin, 0.0);
       NavError e;
-      double sum2 = 0, sum2_alt = 0;
+      double sum2 = 0, sum2_alt = 0, sum2_yaw = 0;
       for (const nav::NavPose& p : report.poses) {
         const auto truth_world = PositionAt(gt, p.t_ns);
         if (!truth_world) continue;
@@ -202,6 +214,15 @@ NavRunReport RunNav(const NavRunSettings& st, const std::function<void(size_t, s
         const double err_alt = p.world_from_body.translation.z() - truth.z();
         report.errors_m.push_back(err);
         report.altitude_errors_m.push_back(err_alt);
+        if (const auto truth_heading = HeadingAt(gt, p.t_ns)) {
+          double roll, pitch, heading;
+          nav::AttitudeOfEnuFromBody(p.world_from_body.rotation.toRotationMatrix(), &roll, &pitch,
+                                     &heading);
+          const double err_yaw = std::remainder(heading - *truth_heading, 360.0);
+          report.heading_errors_deg.push_back(err_yaw);
+          sum2_yaw += err_yaw * err_yaw;
+          e.heading_max_deg = std::max(e.heading_max_deg, std::abs(err_yaw));
+        }
         sum2 += err * err;
         sum2_alt += err_alt * err_alt;
         e.max_m = std::max(e.max_m, err);
@@ -211,6 +232,8 @@ NavRunReport RunNav(const NavRunSettings& st, const std::function<void(size_t, s
       if (e.poses > 0) {
         e.rmse_m = std::sqrt(sum2 / e.poses);
         e.altitude_rmse_m = std::sqrt(sum2_alt / e.poses);
+        if (!report.heading_errors_deg.empty())
+          e.heading_rmse_deg = std::sqrt(sum2_yaw / report.heading_errors_deg.size());
         report.error = e;
       }
     }
@@ -264,7 +287,8 @@ nlohmann::json NavRunReport::ToJson() const {
                 {"rejected", stats.fixes_rejected}};
   j["factors"] = {{"odometry", stats.odometry_factors},
                   {"odometry_rejected", stats.odometry_rejected},
-                  {"baro", stats.baro_factors}};
+                  {"baro", stats.baro_factors},
+                  {"fix_yaw", stats.fix_yaws}};
   j["resets"] = stats.resets;
   j["gnss"] = {{"received", stats.gnss_received}, {"accepted", stats.gnss_accepted}};
   j["outliers"] = {{"injected", stats.outliers_injected}, {"accepted", stats.outliers_accepted}};
@@ -275,7 +299,9 @@ nlohmann::json NavRunReport::ToJson() const {
                   {"rmse_m", error->rmse_m},
                   {"max_m", error->max_m},
                   {"final_m", error->final_m},
-                  {"altitude_rmse_m", error->altitude_rmse_m}};
+                  {"altitude_rmse_m", error->altitude_rmse_m},
+                  {"heading_rmse_deg", error->heading_rmse_deg},
+                  {"heading_max_deg", error->heading_max_deg}};
   }
   nlohmann::json fx = nlohmann::json::array();
   for (const nav::FixLog& f : fixes) {

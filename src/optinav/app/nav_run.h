@@ -44,6 +44,7 @@ struct NavError {
   size_t poses = 0;
   double rmse_m = 0, max_m = 0, final_m = 0;  // horizontal
   double altitude_rmse_m = 0;
+  double heading_rmse_deg = 0, heading_max_deg = 0;  // yaw of the body
 };
 
 struct NavRunReport {
@@ -54,6 +55,7 @@ struct NavRunReport {
   std::optional<NavError> error;
   std::vector<double> errors_m;  // per pose, when `error`
   std::vector<double> altitude_errors_m;
+  std::vector<double> heading_errors_deg;  // estimate minus truth, wrapped to [-180, 180)
   double wall_s = 0, duration_s = 0;
   int64_t first_frame_ns = 0;  // the first nadir frame (the reference of `blank`)
   nlohmann::json ToJson() const;

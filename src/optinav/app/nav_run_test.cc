@@ -146,6 +146,38 @@ TEST_F(NavRunTest, AWrongStartIsRelocalisedAtTheAgreeingFixes) {
   EXPECT_LT(late_max, 20.0);
 }
 
+TEST_F(NavRunTest, TheFixesHeadingCorrectsAWrongStartHeading) {
+  // A compass 8 deg off that claims 2 deg: the fixes' heading (the correlation's search, the
+  // features' pose) pulls the yaw back within seconds; from position fixes alone the heading is
+  // only seen through the track, slowly. Both runs are printed, the fixes' heading is asserted.
+  NavRunSettings with = Settings("yaw_fix");
+  NavRunSettings without = Settings("yaw_none");
+  nav::NavStart start = ReadSimTruth(with.dataset).value().Start();
+  start.heading_deg += 8.0;
+  start.heading_sigma_deg = 2.0;
+  with.nav.start = without.nav.start = start;
+  without.nav.fix_yaw_sigma_deg = 0;
+  const NavRunReport a = RunNav(with), b = RunNav(without);
+  ASSERT_TRUE(a.error && b.error);
+  ASSERT_FALSE(a.heading_errors_deg.empty());
+  const auto after = [](const NavRunReport& r, double t_s) {
+    double m = 0;
+    for (size_t k = 0; k < r.poses.size() && k < r.heading_errors_deg.size(); ++k)
+      if ((r.poses[k].t_ns - r.poses.front().t_ns) * 1e-9 >= t_s)
+        m = std::max(m, std::abs(r.heading_errors_deg[k]));
+    return m;
+  };
+  std::printf(
+      "start heading 8 deg off (sigma 2): heading error first %.1f deg; max after 10 s %.2f deg "
+      "(< 1.5) with the fixes' heading, %.2f deg without; RMSE %.2f / %.2f m\n",
+      a.heading_errors_deg.front(), after(a, 10.0), after(b, 10.0), a.error->rmse_m,
+      b.error->rmse_m);
+  EXPECT_GT(std::abs(a.heading_errors_deg.front()), 5.0);
+  EXPECT_LT(after(a, 10.0), 1.5);
+  EXPECT_GT(a.stats.fix_yaws, 10u);
+  EXPECT_EQ(b.stats.fix_yaws, 0u);
+}
+
 TEST_F(NavRunTest, BadInputIsNamed) {
   NavRunSettings st = Settings("bad");
   st.no_map = true;

@@ -58,6 +58,10 @@ int RunNav(int argc, char** argv) {
       .add_option("--fix-sigma-scale", st.nav.fix_sigma_scale,
                   "a map fix's sigma is the locator's position_sigma_m times this")
       ->capture_default_str();
+  command
+      .add_option("--fix-yaw-sigma", st.nav.fix_yaw_sigma_deg,
+                  "a map fix's heading enters with this sigma (deg; 0: not used)")
+      ->capture_default_str();
   command.add_option("--window", st.nav.window_states, "states in the sliding window")
       ->capture_default_str();
   command.add_option("--max-frames", st.max_frames,
@@ -101,8 +105,9 @@ int RunNav(int argc, char** argv) {
     if (r.error)
       std::printf(
           "global error vs ground truth (no alignment): horizontal RMSE %.2f m, max %.2f "
-          "m, final %.2f m; altitude RMSE %.2f m\n",
-          r.error->rmse_m, r.error->max_m, r.error->final_m, r.error->altitude_rmse_m);
+          "m, final %.2f m; altitude RMSE %.2f m; heading RMSE %.2f deg, max %.2f deg\n",
+          r.error->rmse_m, r.error->max_m, r.error->final_m, r.error->altitude_rmse_m,
+          r.error->heading_rmse_deg, r.error->heading_max_deg);
     std::printf("trajectory -> %s\n", st.out.c_str());
     return 0;
   });

@@ -11,6 +11,8 @@ std::string OdometryOptions::Check() const {
   if (max_features < 20) return "odometry max_features must be >= 20";
   if (orb_levels < 1) return "odometry orb_levels must be >= 1";
   if (!(ratio > 0 && ratio <= 1)) return "odometry ratio must be in (0, 1]";
+  if (!(clahe_clip_limit >= 0)) return "odometry clahe_clip_limit must be >= 0";
+  if (clahe_tiles < 1 || clahe_tiles > 64) return "odometry clahe_tiles must be 1..64";
   return homography.Check();
 }
 
@@ -21,6 +23,9 @@ FrameOdometry::FrameOdometry(const OdometryOptions& options) : options_(options)
   eo.max_features = options.max_features;
   eo.orb_levels = options.orb_levels;
   extractor_ = features::CreateFeatureExtractor(eo);
+  if (options.clahe_clip_limit > 0)
+    clahe_ = cv::createCLAHE(options.clahe_clip_limit,
+                             cv::Size(options.clahe_tiles, options.clahe_tiles));
 }
 
 FrameOdometry::~FrameOdometry() = default;
@@ -34,7 +39,9 @@ OdometryStep FrameOdometry::Track(const cv::Mat& gray) {
   Timer total;
   OdometryStep step;
   Timer extraction;
-  features::Features current = extractor_->Extract(gray);
+  cv::Mat equalised;
+  if (clahe_) clahe_->apply(gray, equalised);
+  features::Features current = extractor_->Extract(clahe_ ? equalised : gray);
   step.extraction_ms = extraction.ElapsedMs();
   if (!has_previous_) {
     step.reason = "first frame";

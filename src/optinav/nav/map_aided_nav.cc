@@ -82,6 +82,51 @@ class PositionFactor : public vio::TimedFactor {
   const ceres::LossFunction* loss_;
 };
 
+// The heading a map fix measured (the frame's up direction, clockwise from north: the yaw of
+// the mapping camera's mount, docs/FORMATS.md) minus the state's: the mount's nose axis (image
+// up, camera -y) in ENU gives yaw = atan2(east, north), free of roll and pitch (Z-Y-X).
+class FixYawFunctor {
+ public:
+  FixYawFunctor(const vio::ImuPreintegration& pre, const Eigen::Vector3d& gravity,
+                const Eigen::Vector3d& nose_body, double yaw_rad, double sigma_rad)
+      : predict_(pre, gravity), nose_body_(nose_body), yaw_(yaw_rad), inv_sigma_(1.0 / sigma_rad) {}
+  template <typename T>
+  bool operator()(const T* pose, const T* sb, T* residuals) const {
+    Eigen::Matrix<T, 3, 1> p;
+    Eigen::Quaternion<T> q;
+    predict_(pose, sb, &p, nullptr, &q);
+    const Eigen::Matrix<T, 3, 1> u = q * nose_body_.cast<T>();
+    const T d = ceres::atan2(u[0], u[1]) - T(yaw_);
+    residuals[0] = ceres::atan2(ceres::sin(d), ceres::cos(d)) * T(inv_sigma_);
+    return true;
+  }
+
+ private:
+  vio::TimedStatePredictor predict_;
+  Eigen::Vector3d nose_body_;
+  double yaw_, inv_sigma_;
+};
+
+class FixYawFactor : public vio::TimedFactor {
+ public:
+  FixYawFactor(int64_t t_ns, const Eigen::Vector3d& nose_body, double yaw_rad, double sigma_rad,
+               const ceres::LossFunction* loss)
+      : t_ns_(t_ns), nose_body_(nose_body), yaw_(yaw_rad), sigma_(sigma_rad), loss_(loss) {}
+  int64_t t_ns() const override { return t_ns_; }
+  ceres::CostFunction* Create(const vio::ImuPreintegration& pre, const Eigen::Vector3d& gravity,
+                              bool) const override {
+    return new ceres::AutoDiffCostFunction<FixYawFunctor, 1, vio::kPoseSize, vio::kSpeedBiasSize>(
+        new FixYawFunctor(pre, gravity, nose_body_, yaw_, sigma_));
+  }
+  const ceres::LossFunction* loss() const override { return loss_; }
+
+ private:
+  int64_t t_ns_;
+  Eigen::Vector3d nose_body_;
+  double yaw_, sigma_;
+  const ceres::LossFunction* loss_;
+};
+
 // z(t) + bias - barometric altitude.
 class BaroFunctor {
  public:
@@ -211,6 +256,9 @@ std::string NavOptions::Check() const {
   if (window_states < 3) return "window_states must be >= 3";
   for (double v : {gyro_noise_density, accel_noise_density, gyro_random_walk, accel_random_walk})
     if (!(v > 0)) return "IMU noise densities must be > 0";
+  if (!(gyro_bias_prior_sigma > 0) || !(accel_bias_prior_sigma > 0))
+    return "IMU bias prior sigmas must be > 0";
+  if (!(fix_yaw_sigma_deg >= 0)) return "fix_yaw_sigma_deg must be >= 0";
   if (!(baro_sigma_m > 0) || !(baro_bias_sigma_m > 0) || !(baro_bias_walk_m_per_sqrt_s >= 0))
     return "barometer sigmas must be > 0 (walk >= 0)";
   if (!(odometry_pixel_sigma > 0) || !(odometry_min_velocity_sigma > 0))
@@ -297,6 +345,8 @@ struct MapAidedNavigator::Impl {
     backend_options.imu_noise = {options.gyro_noise_density, options.accel_noise_density,
                                  options.gyro_random_walk, options.accel_random_walk};
     backend_options.max_iterations = 10;
+    backend_options.prior_gyro_bias_sigma = options.gyro_bias_prior_sigma;
+    backend_options.prior_accel_bias_sigma = options.accel_bias_prior_sigma;
     backend_options.jacobi_scaled_marginalization = true;
   }
 
@@ -618,6 +668,17 @@ struct MapAidedNavigator::Impl {
         gate_scale = std::max(1.0, gate_scale / 2.0);
         const double alt_sigma =
             log.enu.z() > 0 ? options.fix_altitude_sigma_rel * log.enu.z() : 0.0;
+        const double yaw_sigma_deg = options.fix_yaw_sigma_deg;
+        if (yaw_sigma_deg > 0) {
+          // The fix's heading, when it agrees with the prediction within 3 sigma + 3 deg.
+          const double innovation = std::remainder(fix_attitude.z() - heading, 360.0);
+          if (std::abs(innovation) < 3.0 * std::hypot(yaw_sigma_deg, yaw_sigma_rad / kDeg) + 3.0) {
+            backend->AddTimedFactor(std::make_unique<FixYawFactor>(
+                t_ns, sensors.body_from_cam.rotation * Eigen::Vector3d(0, -1, 0),
+                fix_attitude.z() * kDeg, yaw_sigma_deg * kDeg, map_loss.get()));
+            ++stats.fix_yaws;
+          }
+        }
         backend->AddTimedFactor(std::make_unique<PositionFactor>(
             t_ns, Eigen::Vector3d(log.enu.x(), log.enu.y(), std::max(0.0, log.enu.z())),
             log.sigma_m, alt_sigma, map_loss.get()));

@@ -60,6 +60,12 @@ struct NavOptions {
   // IMU noise (continuous time, as in sensor.yaml); the defaults are a MEMS IMU.
   double gyro_noise_density = 1.7e-4, accel_noise_density = 2.0e-3;
   double gyro_random_walk = 2.0e-5, accel_random_walk = 3.0e-3;
+  // The biases' prior at the start (per axis): what is left after the autopilot's calibration
+  // at rest before take-off (the simulator's IMU draws 0.002 rad/s and 0.02 m/s^2). The VIO's
+  // looser defaults (0.01, 0.2) let the window trade a gyro bias for a tilt that the fixes,
+  // computed with the estimated tilt, then confirm (docs/NAV.md).
+  double gyro_bias_prior_sigma = 0.003;  // rad/s
+  double accel_bias_prior_sigma = 0.05;  // m/s^2
   // Barometer: white noise per sample, the bias's prior (the baro is referenced to the map
   // plane, e.g. zeroed at take-off at the map's ground height) and its random walk.
   double baro_sigma_m = 0.5;
@@ -83,7 +89,10 @@ struct NavOptions {
   // 3.9 km flight are within 2 sigma (docs/NAV.md).
   double fix_sigma_scale = 0.5;
   double fix_altitude_sigma_rel = 0.05;  // altitude from a features fix: sigma = this x altitude
-  double gate_chi2 = 13.8;               // 2 DoF, 99.9 %; <= 0 disables the gate
+  // A fix's heading (orientation correlation searches it; features estimate it) enters as a yaw
+  // factor with this sigma (degrees; <= 0: not used).
+  double fix_yaw_sigma_deg = 1.5;
+  double gate_chi2 = 13.8;           // 2 DoF, 99.9 %; <= 0 disables the gate
   double reopen_after_s = 10.0;      // rejections for this long widen the gate (x2 sigma each time)
   double max_local_radius_m = 1500;  // a prior radius beyond this: global search
   double min_prior_radius_m = 100;
@@ -138,6 +147,7 @@ struct NavStats {
   size_t frames = 0, states = 0;
   size_t fixes_tried = 0, fixes_found = 0, fixes_accepted = 0, fixes_rejected = 0;
   size_t odometry_factors = 0, odometry_rejected = 0, baro_factors = 0;
+  size_t fix_yaws = 0;  // fixes whose heading entered the estimate
   size_t gnss_received = 0, gnss_accepted = 0;
   size_t outliers_injected = 0, outliers_accepted = 0;  // inject_outlier_fraction
   size_t resets = 0;

@@ -8,6 +8,7 @@
 #include <string>
 
 #include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "optinav/features/features.h"
 
@@ -17,6 +18,12 @@ struct OdometryOptions {
   int max_features = 500;
   int orb_levels = 3;
   float ratio = 0.8f;
+  // Contrast-limited adaptive histogram equalisation before detection (clip limit; 0: off),
+  // over clahe_tiles x clahe_tiles cells. Haze halves the contrast a FAST threshold sees: on
+  // the mission's 50 % fog frames (640x480 at 640 m) ORB keeps 63 corners and 29 homography
+  // inliers per pair without it, 499 and 244 with it (docs/NAV.md).
+  double clahe_clip_limit = 2.0;
+  int clahe_tiles = 8;
   features::HomographyOptions homography{.reprojection_threshold_px = 3.0, .min_inliers = 20};
   std::string Check() const;  // "" when valid
 };
@@ -41,6 +48,7 @@ class FrameOdometry {
  private:
   OdometryOptions options_;
   std::unique_ptr<features::FeatureExtractor> extractor_;
+  cv::Ptr<cv::CLAHE> clahe_;
   features::Features previous_;
   bool has_previous_ = false;
 };
