@@ -83,7 +83,7 @@ class PositionFactor : public vio::TimedFactor {
 };
 
 // The heading a map fix measured (the frame's up direction, clockwise from north: the yaw of
-// the mapping camera's mount, docs/FORMATS.md) minus the state's: the mount's nose axis (image
+// the mapping camera's mount, docs/MAPDB.md) minus the state's: the mount's nose axis (image
 // up, camera -y) in ENU gives yaw = atan2(east, north), free of roll and pitch (Z-Y-X).
 class FixYawFunctor {
  public:
