@@ -92,9 +92,8 @@ class FixYawFunctor {
       : predict_(pre, gravity), nose_body_(nose_body), yaw_(yaw_rad), inv_sigma_(1.0 / sigma_rad) {}
   template <typename T>
   bool operator()(const T* pose, const T* sb, T* residuals) const {
-    Eigen::Matrix<T, 3, 1> p;
     Eigen::Quaternion<T> q;
-    predict_(pose, sb, &p, nullptr, &q);
+    predict_(pose, sb, nullptr, nullptr, &q);  // the attitude only
     const Eigen::Matrix<T, 3, 1> u = q * nose_body_.cast<T>();
     const T d = ceres::atan2(u[0], u[1]) - T(yaw_);
     residuals[0] = ceres::atan2(ceres::sin(d), ceres::cos(d)) * T(inv_sigma_);
