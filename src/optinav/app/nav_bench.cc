@@ -158,11 +158,11 @@ NavBenchRun RunOne(const NavBenchOptions& o, const std::string& map_path, const 
           first_fix = f.t_ns;
           break;
         }
-      for (size_t i = 0; i < r.poses.size() && i < r.errors_m.size(); ++i) {
-        if (r.poses[i].t_ns < gap_end) run.gap_end_error_m = r.errors_m[i];
-        if (first_fix && run.recovery_s < 0 && r.poses[i].t_ns >= *first_fix &&
+      for (size_t i = 0; i < r.error_t_ns.size(); ++i) {
+        if (r.error_t_ns[i] < gap_end) run.gap_end_error_m = r.errors_m[i];
+        if (first_fix && run.recovery_s < 0 && r.error_t_ns[i] >= *first_fix &&
             r.errors_m[i] < 10.0)
-          run.recovery_s = (r.poses[i].t_ns - *first_fix) * 1e-9;
+          run.recovery_s = (r.error_t_ns[i] - *first_fix) * 1e-9;
       }
     }
   } catch (const std::exception& e) {

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 
 #include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
@@ -203,6 +204,7 @@ NavRunReport RunNav(const NavRunSettings& st, const std::function<void(size_t, s
       const geo::LocalEnu sim_enu(*sim_origin, 0.0), nav_enu(report.origin, 0.0);
       NavError e;
       double sum2 = 0, sum2_alt = 0, sum2_yaw = 0;
+      size_t n_yaw = 0;
       for (const nav::NavPose& p : report.poses) {
         const auto truth_world = PositionAt(gt, p.t_ns);
         if (!truth_world) continue;
@@ -212,15 +214,18 @@ NavRunReport RunNav(const NavRunSettings& st, const std::function<void(size_t, s
         truth.z() = truth_world->z();  // height above the (flat) map plane
         const double err = (p.world_from_body.translation.head<2>() - truth.head<2>()).norm();
         const double err_alt = p.world_from_body.translation.z() - truth.z();
+        report.error_t_ns.push_back(p.t_ns);
         report.errors_m.push_back(err);
         report.altitude_errors_m.push_back(err_alt);
+        report.heading_errors_deg.push_back(std::numeric_limits<double>::quiet_NaN());
         if (const auto truth_heading = HeadingAt(gt, p.t_ns)) {
           double roll, pitch, heading;
           nav::AttitudeOfEnuFromBody(p.world_from_body.rotation.toRotationMatrix(), &roll, &pitch,
                                      &heading);
           const double err_yaw = std::remainder(heading - *truth_heading, 360.0);
-          report.heading_errors_deg.push_back(err_yaw);
+          report.heading_errors_deg.back() = err_yaw;
           sum2_yaw += err_yaw * err_yaw;
+          ++n_yaw;
           e.heading_max_deg = std::max(e.heading_max_deg, std::abs(err_yaw));
         }
         sum2 += err * err;
@@ -232,8 +237,7 @@ NavRunReport RunNav(const NavRunSettings& st, const std::function<void(size_t, s
       if (e.poses > 0) {
         e.rmse_m = std::sqrt(sum2 / e.poses);
         e.altitude_rmse_m = std::sqrt(sum2_alt / e.poses);
-        if (!report.heading_errors_deg.empty())
-          e.heading_rmse_deg = std::sqrt(sum2_yaw / report.heading_errors_deg.size());
+        if (n_yaw > 0) e.heading_rmse_deg = std::sqrt(sum2_yaw / n_yaw);
         report.error = e;
       }
     }
@@ -302,6 +306,11 @@ nlohmann::json NavRunReport::ToJson() const {
                   {"altitude_rmse_m", error->altitude_rmse_m},
                   {"heading_rmse_deg", error->heading_rmse_deg},
                   {"heading_max_deg", error->heading_max_deg}};
+    // Per pose (NaN, written as null, where the truth has no heading): for error-over-time plots.
+    j["error"]["series"] = {{"t_ns", error_t_ns},
+                            {"horizontal_m", errors_m},
+                            {"altitude_m", altitude_errors_m},
+                            {"heading_deg", heading_errors_deg}};
   }
   nlohmann::json fx = nlohmann::json::array();
   for (const nav::FixLog& f : fixes) {

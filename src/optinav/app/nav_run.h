@@ -53,9 +53,11 @@ struct NavRunReport {
   nav::NavStats stats;
   geo::LatLon origin;  // the world frame's ENU origin (the map's centre)
   std::optional<NavError> error;
-  std::vector<double> errors_m;  // per pose, when `error`
+  std::vector<int64_t> error_t_ns;  // the poses with ground truth, when `error`
+  std::vector<double> errors_m;     // per entry of error_t_ns
   std::vector<double> altitude_errors_m;
-  std::vector<double> heading_errors_deg;  // estimate minus truth, wrapped to [-180, 180)
+  std::vector<double> heading_errors_deg;  // estimate minus truth, wrapped to [-180, 180); NaN:
+                                           // no truth heading
   double wall_s = 0, duration_s = 0;
   int64_t first_frame_ns = 0;  // the first nadir frame (the reference of `blank`)
   nlohmann::json ToJson() const;

@@ -1,7 +1,9 @@
 #include "optinav/maploc/locator.h"
 
 #include <algorithm>
+#include <cmath>
 #include <random>
+#include <tuple>
 
 #include <gtest/gtest.h>
 
@@ -109,15 +111,45 @@ TEST_F(Aero1Map, BadFramesAreNotLocalizedWithAReason) {
   EXPECT_FALSE(empty.localized);
   // A uniform frame (a blanked camera) is refused by the correlation too, with or without a
   // prior: it used to match the borders of its own warps (issue 20's 60 s gap).
-  Prior around;
-  around.position = locator.PixelToLatLon({320, 240});
-  around.radius_m = 100;
-  around.roll_deg = 6;  // rectified: the warp leaves borders
-  around.pitch_deg = -4;
-  for (const Prior& p : {Prior{}, around}) {
-    const LocateResult grey =
-        locator.LocateByOrientationCorrelation(cv::Mat(180, 240, CV_8UC1, cv::Scalar(128)), p);
-    EXPECT_FALSE(grey.localized);
+  // Rectified (tilted) frames: the warp leaves borders, and its blend with them used to reach
+  // into the valid area (a blank 640x480 frame at roll -8, pitch 12 was matched).
+  std::vector<Prior> priors = {Prior{}};
+  for (const auto& [roll, pitch] :
+       {std::pair{6.0, -4.0}, {10.0, 15.0}, {-8.0, 12.0}, {3.0, -14.0}, {-10.0, -9.0}}) {
+    Prior around;
+    around.position = locator.PixelToLatLon({320, 240});
+    around.radius_m = 100;
+    around.roll_deg = roll;
+    around.pitch_deg = pitch;
+    priors.push_back(around);
+  }
+  for (const cv::Size size : {cv::Size(240, 180), cv::Size(640, 480)}) {
+    for (const Prior& p : priors) {
+      const LocateResult grey =
+          locator.LocateByOrientationCorrelation(cv::Mat(size, CV_8UC1, cv::Scalar(128)), p);
+      EXPECT_FALSE(grey.localized) << size << " roll " << p.roll_deg.value_or(0);
+      EXPECT_NE(grey.reason.find("textureless frame"), std::string::npos) << grey.reason;
+    }
+  }
+  // The simulator's nadir camera (640x480, 90 deg, radial-tangential with zero coefficients)
+  // at the attitudes and altitudes `optinav nav` gave on bench nav's flight 2 when its blank
+  // frames were matched: the rectified frame's own pixels had a std of 1.17-1.82 there.
+  LocateOptions nadir_options;
+  camera::PinholeCamera nadir = camera::PinholeCamera::FromHorizontalFov(640, 480, M_PI / 2);
+  nadir.distortion = camera::DistortionModel::kRadialTangential;
+  nadir_options.camera = nadir;
+  Locator nadir_locator(*db_, nadir_options);
+  for (const auto& [roll, pitch, altitude] :
+       {std::tuple{-0.163, -0.913, 497.92}, {0.136, 1.003, 563.89}, {-0.102, 2.066, 543.07}}) {
+    Prior p;
+    p.position = locator.PixelToLatLon({320, 240});
+    p.radius_m = 180;
+    p.roll_deg = roll;
+    p.pitch_deg = pitch;
+    p.altitude_m = altitude;
+    const LocateResult grey = nadir_locator.LocateByOrientationCorrelation(
+        cv::Mat(480, 640, CV_8UC1, cv::Scalar(128)), p);
+    EXPECT_FALSE(grey.localized) << "roll " << roll << " pitch " << pitch;
     EXPECT_NE(grey.reason.find("textureless frame"), std::string::npos) << grey.reason;
   }
   // A frame of another place (a cluttered indoor scene) does not match the map.

@@ -318,6 +318,10 @@ struct MapAidedNavigator::Impl {
   };
   std::optional<SearchHint> search_hint;
   std::optional<FixLog> candidate;  // initialisation: a global fix waiting for confirmation
+  std::optional<int64_t> last_accepted_fix_ns;
+  std::optional<FixLog> gap_candidate;  // after a gap: a far fix waiting for confirmation
+  bool after_gap_restart = false;       // restart_fix confirmed a gap_candidate
+  double last_gap_s = 0;                // ... after this long without an accepted fix
   struct Gnss {
     int64_t t_ns;
     Eigen::Vector3d enu;
@@ -433,6 +437,8 @@ struct MapAidedNavigator::Impl {
                                 Eigen::VectorXd::Constant(1, options.baro_bias_walk_m_per_sqrt_s));
     covariance = backend->NewestCovariance();
     stats.initialized_at_ns = stats.initialized_at_ns.value_or(t_ns);
+    last_accepted_fix_ns = t_ns;  // the start's position counts as the last fix
+    gap_candidate.reset();
     gate_scale = 1.0;
     rejecting_since_ns.reset();
     // Barometer samples before the first state cannot be used.
@@ -597,7 +603,13 @@ struct MapAidedNavigator::Impl {
         0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(p_xy).eigenvalues().maxCoeff()));
     maploc::Prior prior;
     const double radius = std::max(options.min_prior_radius_m, 3.0 * sigma_max * gate_scale + 30.0);
-    if (radius <= options.max_local_radius_m) {
+    if (gap_candidate && (t_ns - gap_candidate->t_ns) * 1e-9 > 3.0) gap_candidate.reset();
+    if (gap_candidate) {
+      // Confirm around where the candidate put the vehicle (moved by the estimate since).
+      const Eigen::Vector2d c = predicted.position.head<2>() + gap_candidate->innovation;
+      prior.position = enu.FromEnu(Eigen::Vector3d(c.x(), c.y(), 0));
+      prior.radius_m = std::max(options.min_prior_radius_m, 3.0 * gap_candidate->sigma_m + 20.0);
+    } else if (radius <= options.max_local_radius_m) {
       prior.position =
           enu.FromEnu(Eigen::Vector3d(predicted.position.x(), predicted.position.y(), 0));
       prior.radius_m = radius;
@@ -641,8 +653,31 @@ struct MapAidedNavigator::Impl {
       };
       const Eigen::Matrix2d s = p_xy + log.sigma_m * log.sigma_m * Eigen::Matrix2d::Identity();
       log.innovation_m = e.norm();
+      log.innovation = e;
       log.chi2 = e.dot(s.ldlt().solve(e));
-      if (options.gate_chi2 > 0 && log.chi2 > options.gate_chi2 * gate_scale * gate_scale) {
+      const bool after_gap = options.confirm_after_gap_s > 0 &&
+                             (!last_accepted_fix_ns ||
+                              (t_ns - *last_accepted_fix_ns) * 1e-9 > options.confirm_after_gap_s);
+      const bool far = log.innovation_m > 3.0 * log.sigma_m + 30.0;
+      const bool gated =
+          options.gate_chi2 > 0 && log.chi2 > options.gate_chi2 * gate_scale * gate_scale;
+      if (gap_candidate && (gap_candidate->innovation - e).norm() <= 3.0 * log.sigma_m + 20.0) {
+        // A second fix at the candidate's offset: restart there (AddFrame, after the solve).
+        log.accepted = true;
+        log.reason = "after a gap: confirmed, restarting at the fix";
+        ++stats.fixes_accepted;
+        if (log.injected) ++stats.outliers_accepted;
+        relocalize = true;
+        restart_fix = log;
+        after_gap_restart = true;
+        last_gap_s = last_accepted_fix_ns ? (t_ns - *last_accepted_fix_ns) * 1e-9 : 0.0;
+        gap_candidate.reset();
+        recent_fixes.clear();
+        last_accepted_fix_ns = t_ns;
+      } else if (after_gap && far && !gated) {
+        log.reason = "after a gap: far from the estimate, waiting for a confirming fix";
+        gap_candidate = log;
+      } else if (gated) {
         log.reason = "gate";
         ++stats.fixes_rejected;
         // Relocalise when most fixes of the last 20 s were refused (at the last fix when the
@@ -662,6 +697,8 @@ struct MapAidedNavigator::Impl {
         log.accepted = true;
         ++stats.fixes_accepted;
         if (log.injected) ++stats.outliers_accepted;
+        last_accepted_fix_ns = t_ns;
+        gap_candidate.reset();
         refused_mostly(false);
         rejecting_since_ns.reset();
         gate_scale = std::max(1.0, gate_scale / 2.0);
@@ -775,6 +812,11 @@ struct MapAidedNavigator::Impl {
     const vio::StateEstimate estimate = backend->AddFrame(t_ns, pre, {}, true);
     covariance = backend->NewestCovariance();
     stats.solve_ms += Ms(start);
+    spdlog::trace(
+        "nav-state {} v {:.3f} {:.3f} {:.3f} bg {:.5f} {:.5f} {:.5f} ba {:.4f} {:.4f} {:.4f}", t_ns,
+        estimate.velocity.x(), estimate.velocity.y(), estimate.velocity.z(), estimate.bias.gyro.x(),
+        estimate.bias.gyro.y(), estimate.bias.gyro.z(), estimate.bias.accel.x(),
+        estimate.bias.accel.y(), estimate.bias.accel.z());
     ++stats.states;
     have_frame = true;
     last_frame_ns = t_ns;
@@ -787,15 +829,26 @@ struct MapAidedNavigator::Impl {
       if (restart_fix && restart_fix->t_ns == t_ns) {
         // Restart at the fix with the estimate's attitude, velocity and biases (the position
         // drifted, the rest is likely sound; the velocity loosened).
-        spdlog::warn(
-            "nav: most map fixes of the last 20 s refused at t={} s and the last ones agree: "
-            "restarting at the fix ({:.0f} m from the estimate)",
-            t_ns * 1e-9, restart_fix->innovation_m);
+        if (after_gap_restart) {
+          spdlog::warn(
+              "nav: after {:.0f} s without an accepted map fix, two agree at t={} s: restarting "
+              "at the fix ({:.0f} m from the estimate)",
+              last_gap_s, t_ns * 1e-9, restart_fix->innovation_m);
+        } else {
+          spdlog::warn(
+              "nav: most map fixes of the last 20 s refused at t={} s and the last ones agree: "
+              "restarting at the fix ({:.0f} m from the estimate)",
+              t_ns * 1e-9, restart_fix->innovation_m);
+        }
         Eigen::Vector3d p = last.world_from_body.translation;
         p.head<2>() = restart_fix->enu.head<2>();
         const double yaw_sigma = std::max(5.0 * kDeg, last.yaw_sigma_deg * kDeg);
+        // After a gap the velocity drifted too (16 m/s after 60 s of IMU only, measured).
+        const double velocity_sigma = after_gap_restart ? options.init_velocity_sigma_m_s : 5.0;
         Start(t_ns, p, last.world_from_body.rotation.toRotationMatrix(), last.velocity,
-              restart_fix->sigma_m, yaw_sigma, 5.0, backend->Newest().bias, last.baro_bias_m);
+              restart_fix->sigma_m, yaw_sigma, velocity_sigma, backend->Newest().bias,
+              last.baro_bias_m);
+        after_gap_restart = false;
         restart_fix.reset();
         return PoseOfNewest();
       }

@@ -92,8 +92,17 @@ struct NavOptions {
   // A fix's heading (orientation correlation searches it; features estimate it) enters as a yaw
   // factor with this sigma (degrees; <= 0: not used).
   double fix_yaw_sigma_deg = 1.5;
-  double gate_chi2 = 13.8;           // 2 DoF, 99.9 %; <= 0 disables the gate
-  double reopen_after_s = 10.0;      // rejections for this long widen the gate (x2 sigma each time)
+  double gate_chi2 = 13.8;       // 2 DoF, 99.9 %; <= 0 disables the gate
+  double reopen_after_s = 10.0;  // rejections for this long widen the gate (x2 sigma each time)
+  // After this long without an accepted fix (a gap: water, cloud, a blanked camera), a fix
+  // whose innovation exceeds 3 sigma + 30 m is not fused: the state drifted further than its
+  // covariance says (60 s of IMU only: 500 m against a 3-sigma of 400 m), the robust norm would
+  // move it only a few metres, and the next searches around it find wrong places that agree
+  // with it. Such a fix waits for a second one within 3 s that puts the vehicle at the same
+  // offset from the estimate (3 sigma + 20 m), searched around where the first one says; then
+  // the window restarts at the fix with the estimate's attitude and biases and a loosened
+  // velocity. A single wrong fix is never confirmed.
+  double confirm_after_gap_s = 10.0;
   double max_local_radius_m = 1500;  // a prior radius beyond this: global search
   double min_prior_radius_m = 100;
   // Initialisation from map fixes: the first fix found globally must be confirmed by a second
@@ -139,6 +148,7 @@ struct FixLog {
   Eigen::Vector3d enu = Eigen::Vector3d::Zero();  // the fix (z: its altitude when estimated)
   double sigma_m = 0;
   double innovation_m = -1;  // horizontal distance to the prediction (-1 before initialisation)
+  Eigen::Vector2d innovation = Eigen::Vector2d::Zero();  // the fix minus the prediction (m)
   double chi2 = -1;
   double locate_ms = 0;
 };
