@@ -189,7 +189,8 @@ TEST_F(NavRunTest, AGapOfBlankFramesIsBridgedAndLeftWithin10s) {
   // the window cannot see it): the estimate drifts about 100 m, much further than its
   // covariance says, as 60 s of IMU only did on `bench nav`'s flight 2. No fix may be found on a
   // blank frame; once fixes return the estimate must be back under 10 m within 10 s (issue
-  // 20) and end there. The same run without the post-gap confirmation is printed beside.
+  // 20; asserted: within 3 s, which the restart at the confirmed fix gives at once) and end
+  // there. The same run without the post-gap confirmation is printed beside (8-11 s).
   constexpr double kGapStart = 8, kGapEnd = 33;
   const fs::path src = Settings("x").dataset, dst = *dir_ / "flight_gap";
   const int64_t t0 = ReadSimTruth(src.string()).value().groundtruth.t_ns.front();
@@ -245,14 +246,14 @@ TEST_F(NavRunTest, AGapOfBlankFramesIsBridgedAndLeftWithin10s) {
   std::printf(
       "25 s of blank frames, accelerometer bias jump in the gap (flight %.0f s): %zu fixes found "
       "on them (0); error at the gap's end %.1f m (> 50); under 10 m %.1f s after the first fix "
-      "back (<= 10), final %.1f m (< 10), %zu reset(s); without the post-gap confirmation: "
+      "back (<= 3), final %.1f m (< 10), %zu reset(s); without the post-gap confirmation: "
       "%.1f m at the gap's end, under 10 m after %.1f s, final %.1f m\n",
       r.duration_s, found_in_gap, gap_end, recovery, r.error->final_m, r.stats.resets, gap_end_off,
       recovery_off, o.error->final_m);
   EXPECT_EQ(found_in_gap, 0u);
   EXPECT_GT(gap_end, 50.0);  // the drift the test is about happened
   EXPECT_GE(recovery, 0.0);
-  EXPECT_LE(recovery, 10.0);
+  EXPECT_LE(recovery, 3.0);
   EXPECT_LT(r.error->final_m, 10.0);
 }
 

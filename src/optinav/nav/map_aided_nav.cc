@@ -180,11 +180,13 @@ class DisplacementFunctor {
  public:
   DisplacementFunctor(const vio::ImuPreintegration& pre, const Eigen::Vector3d& gravity,
                       const std::array<Eigen::Vector3d, kOdometryPoints>& rays_prev,
-                      const std::array<Eigen::Vector3d, kOdometryPoints>& rays_cur, double sigma)
+                      const std::array<Eigen::Vector3d, kOdometryPoints>& rays_cur, double sigma,
+                      double rotation_sigma)
       : predict_(pre, gravity),
         rays_prev_(rays_prev),
         rays_cur_(rays_cur),
-        inv_sigma_(1.0 / sigma) {}
+        inv_sigma_(1.0 / sigma),
+        inv_rotation_sigma_(rotation_sigma > 0 ? 1.0 / rotation_sigma : 0.0) {}
   template <typename T>
   bool operator()(const T* pose, const T* sb, T* residuals) const {
     using Vec3 = Eigen::Matrix<T, 3, 1>;
@@ -193,45 +195,60 @@ class DisplacementFunctor {
     Vec3 p_cur;
     Eigen::Quaternion<T> q_cur;
     predict_(pose, sb, &p_cur, nullptr, &q_cur);
+    // Per point: the ground offset seen from the previous frame minus the current one's.
+    std::array<T, kOdometryPoints> ex, ey;
     T sx(0), sy(0);
     for (int k = 0; k < kOdometryPoints; ++k) {
       const Vec3 d_prev = q_prev * rays_prev_[k].cast<T>();
       const Vec3 d_cur = q_cur * rays_cur_[k].cast<T>();
       // offset = -h d.xy / d.z (d.z < 0 looking down)
-      sx += -p_prev[2] * d_prev[0] / d_prev[2] + p_cur[2] * d_cur[0] / d_cur[2];
-      sy += -p_prev[2] * d_prev[1] / d_prev[2] + p_cur[2] * d_cur[1] / d_cur[2];
+      ex[k] = -p_prev[2] * d_prev[0] / d_prev[2] + p_cur[2] * d_cur[0] / d_cur[2];
+      ey[k] = -p_prev[2] * d_prev[1] / d_prev[2] + p_cur[2] * d_cur[1] / d_cur[2];
+      sx += ex[k];
+      sy += ey[k];
     }
     const T n(kOdometryPoints);
     residuals[0] = (sx / n - (p_cur[0] - p_prev[0])) * T(inv_sigma_);
     residuals[1] = (sy / n - (p_cur[1] - p_prev[1])) * T(inv_sigma_);
+    // Each outer point against the centre (point 0): zero for a pure translation, so these
+    // carry the rotation between the frames (and the climb), which the mean above drops.
+    for (int k = 1; k < kOdometryPoints; ++k) {
+      residuals[2 * k] = (ex[k] - ex[0]) * T(inv_rotation_sigma_);
+      residuals[2 * k + 1] = (ey[k] - ey[0]) * T(inv_rotation_sigma_);
+    }
     return true;
   }
 
  private:
   vio::TimedStatePredictor predict_;
   std::array<Eigen::Vector3d, kOdometryPoints> rays_prev_, rays_cur_;  // in the body frame
-  double inv_sigma_;
+  double inv_sigma_, inv_rotation_sigma_;  // 0: the outer points' residuals are off
 };
 
 class DisplacementFactor : public vio::TimedFactor {
  public:
   DisplacementFactor(int64_t t_ns, const std::array<Eigen::Vector3d, kOdometryPoints>& rays_prev,
                      const std::array<Eigen::Vector3d, kOdometryPoints>& rays_cur, double sigma,
-                     const ceres::LossFunction* loss)
-      : t_ns_(t_ns), rays_prev_(rays_prev), rays_cur_(rays_cur), sigma_(sigma), loss_(loss) {}
+                     double rotation_sigma, const ceres::LossFunction* loss)
+      : t_ns_(t_ns),
+        rays_prev_(rays_prev),
+        rays_cur_(rays_cur),
+        sigma_(sigma),
+        rotation_sigma_(rotation_sigma),
+        loss_(loss) {}
   int64_t t_ns() const override { return t_ns_; }
   ceres::CostFunction* Create(const vio::ImuPreintegration& pre, const Eigen::Vector3d& gravity,
                               bool) const override {
-    return new ceres::AutoDiffCostFunction<DisplacementFunctor, 2, vio::kPoseSize,
+    return new ceres::AutoDiffCostFunction<DisplacementFunctor, 2 * kOdometryPoints, vio::kPoseSize,
                                            vio::kSpeedBiasSize>(
-        new DisplacementFunctor(pre, gravity, rays_prev_, rays_cur_, sigma_));
+        new DisplacementFunctor(pre, gravity, rays_prev_, rays_cur_, sigma_, rotation_sigma_));
   }
   const ceres::LossFunction* loss() const override { return loss_; }
 
  private:
   int64_t t_ns_;
   std::array<Eigen::Vector3d, kOdometryPoints> rays_prev_, rays_cur_;
-  double sigma_;
+  double sigma_, rotation_sigma_;
   const ceres::LossFunction* loss_;
 };
 
@@ -262,6 +279,7 @@ std::string NavOptions::Check() const {
     return "barometer sigmas must be > 0 (walk >= 0)";
   if (!(odometry_pixel_sigma > 0) || !(odometry_min_velocity_sigma > 0))
     return "odometry sigmas must be > 0";
+  if (!(odometry_rotation_sigma_scale >= 0)) return "odometry_rotation_sigma_scale must be >= 0";
   if (!(fix_rate_hz >= 0)) return "fix_rate_hz must be >= 0";
   if (!vio::ParseGnssNorm(map_norm)) return "map_norm must be l2, huber or tukey, got " + map_norm;
   if (!(fix_sigma_floor_m > 0) || !(fix_altitude_sigma_rel > 0) || !(fix_sigma_scale > 0))
@@ -556,7 +574,7 @@ struct MapAidedNavigator::Impl {
     Eigen::Vector2d sum = Eigen::Vector2d::Zero();
     int n = 0;
     for (const auto& [fx, fy] :
-         {std::pair{0.5, 0.5}, {0.25, 0.25}, {0.75, 0.25}, {0.25, 0.75}, {0.75, 0.75}}) {
+         {std::pair{0.5, 0.5}, {0.12, 0.12}, {0.88, 0.12}, {0.12, 0.88}, {0.88, 0.88}}) {
       const cv::Vec3d c(fx * w, fy * hgt, 1.0);
       const cv::Vec3d q = step.prev_from_cur * c;
       if (std::abs(q[2]) < 1e-9) return;
@@ -591,8 +609,9 @@ struct MapAidedNavigator::Impl {
     odometry_rejections = 0;
     spdlog::trace("nav-odometry {} {:.4f} {:.4f} {:.3f} {}", t_ns, measured.x() / dt,
                   measured.y() / dt, sigma / dt, step.inliers);
-    backend->AddTimedFactor(std::make_unique<DisplacementFactor>(t_ns - 1, rays_prev, rays_cur,
-                                                                 sigma, odometry_loss.get()));
+    backend->AddTimedFactor(std::make_unique<DisplacementFactor>(
+        t_ns - 1, rays_prev, rays_cur, sigma, options.odometry_rotation_sigma_scale * sigma,
+        odometry_loss.get()));
     ++stats.odometry_factors;
   }
 

@@ -77,6 +77,14 @@ struct NavOptions {
   bool use_odometry = true;
   double odometry_pixel_sigma = 0.2;
   double odometry_min_velocity_sigma = 0.3;  // m/s
+  // The homography is taken at the centre and near the four corners (12 % in). Their mean is the
+  // displacement; each corner's difference from the centre (zero for a translation) carries the
+  // rotation between the frames, with this times the displacement's sigma (0: not used). The
+  // mean alone leaves that rotation to the gyro, so a gyro-bias error biased the velocity
+  // (0.15 mrad per frame at 470 m: 0.35 m/s) and tilted the IMU-only drift of a gap. Measured on
+  // `bench nav`'s flights (docs/NAV.md): 4 took the clear RMSE from 5.89 to about 5.6 m and
+  // flight 2's 60 s gap from 464 to 186 m max; 2 pulled the altitude (4.2 m RMSE on flight 2).
+  double odometry_rotation_sigma_scale = 4.0;
   // Map fixes.
   bool use_map = true;
   double fix_rate_hz = 1.0;        // fixes tried at most this often (0: every frame)
