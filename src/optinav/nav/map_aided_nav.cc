@@ -862,7 +862,7 @@ struct MapAidedNavigator::Impl {
         Eigen::Vector3d p = last.world_from_body.translation;
         p.head<2>() = restart_fix->enu.head<2>();
         const double yaw_sigma = std::max(5.0 * kDeg, last.yaw_sigma_deg * kDeg);
-        // After a gap the velocity drifted too (16 m/s after 60 s of IMU only, measured).
+        // After a gap the velocity drifted too (18 m/s after 60 s of IMU only, flight 2).
         const double velocity_sigma = after_gap_restart ? options.init_velocity_sigma_m_s : 5.0;
         Start(t_ns, p, last.world_from_body.rotation.toRotationMatrix(), last.velocity,
               restart_fix->sigma_m, yaw_sigma, velocity_sigma, backend->Newest().bias,
