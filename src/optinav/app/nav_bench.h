@@ -49,6 +49,9 @@ struct NavBenchRun {
   double realtime_factor = 0;
   size_t fixes_tried = 0, fixes_accepted = 0, outliers_injected = 0, outliers_accepted = 0;
   double gap_end_error_m = -1, recovery_s = -1;  // gap60
+  // The first estimate's time after the first nadir frame (the global search before it: the
+  // errors above cover the flight from then on).
+  double initialised_after_s = -1;
   double length_m = 0, duration_s = 0;
 };
 
