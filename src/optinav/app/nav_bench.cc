@@ -154,9 +154,9 @@ NavBenchRun RunOne(const NavBenchOptions& o, const std::string& map_path, const 
       // Gap times relative to the first nadir frame (the blanking's reference).
       const int64_t gap_end =
           r.first_frame_ns + static_cast<int64_t>((kGapStartS + kGapDurationS) * 1e9);
-      std::optional<int64_t> first_fix;
+      std::optional<int64_t> first_fix;  // found (the confirmation may accept only the next)
       for (const nav::FixLog& f : r.fixes)
-        if (f.accepted && f.t_ns >= gap_end) {
+        if (f.found && f.t_ns >= gap_end) {
           first_fix = f.t_ns;
           break;
         }

@@ -189,8 +189,9 @@ TEST_F(NavRunTest, AGapOfBlankFramesIsBridgedAndLeftWithin10s) {
   // the window cannot see it): the estimate drifts about 100 m, much further than its
   // covariance says, as 60 s of IMU only did on `bench nav`'s flight 2. No fix may be found on a
   // blank frame; once fixes return the estimate must be back under 10 m within 10 s (issue
-  // 20; asserted: within 3 s, which the restart at the confirmed fix gives at once) and end
-  // there. The same run without the post-gap confirmation is printed beside (8-11 s).
+  // 20; asserted: within 3 s of the first fix found, which the restart at the confirming second
+  // fix gives) and end there. The same run without the post-gap confirmation is printed beside
+  // (8-11 s).
   constexpr double kGapStart = 8, kGapEnd = 33;
   const fs::path src = Settings("x").dataset, dst = *dir_ / "flight_gap";
   const int64_t t0 = ReadSimTruth(src.string()).value().groundtruth.t_ns.front();
@@ -223,20 +224,20 @@ TEST_F(NavRunTest, AGapOfBlankFramesIsBridgedAndLeftWithin10s) {
     return s >= kGapStart && s < kGapEnd;
   };
   size_t found_in_gap = 0;
-  std::optional<int64_t> back;  // the first accepted fix after the gap
-  for (const nav::FixLog& f : r.fixes) {
+  for (const nav::FixLog& f : r.fixes)
     if (in_gap(f.t_ns) && f.found) ++found_in_gap;
-    if (!back && f.accepted && (f.t_ns - f0) * 1e-9 >= kGapEnd) back = f.t_ns;
-  }
-  ASSERT_TRUE(back.has_value());
-  // The error at the gap's end, and how long after the first fix back the error is first
-  // under 10 m (the issue's recovery figure; -1: never).
+  // The error at the gap's end, and how long after the first fix *found* after the gap (each
+  // run's own; the confirmation waits for a second one) the error is first under 10 m (the
+  // issue's recovery figure; -1: never).
   const auto figures = [&](const NavRunReport& x, double* gap_end, double* recovery_s) {
+    std::optional<int64_t> back;
+    for (const nav::FixLog& f : x.fixes)
+      if (!back && f.found && (f.t_ns - f0) * 1e-9 >= kGapEnd) back = f.t_ns;
     *gap_end = 0;
     *recovery_s = -1;
     for (size_t k = 0; k < x.error_t_ns.size(); ++k) {
       if (in_gap(x.error_t_ns[k])) *gap_end = x.errors_m[k];
-      if (*recovery_s < 0 && x.error_t_ns[k] >= *back && x.errors_m[k] < 10.0)
+      if (back && *recovery_s < 0 && x.error_t_ns[k] >= *back && x.errors_m[k] < 10.0)
         *recovery_s = (x.error_t_ns[k] - *back) * 1e-9;
     }
   };
@@ -246,7 +247,8 @@ TEST_F(NavRunTest, AGapOfBlankFramesIsBridgedAndLeftWithin10s) {
   std::printf(
       "25 s of blank frames, accelerometer bias jump in the gap (flight %.0f s): %zu fixes found "
       "on them (0); error at the gap's end %.1f m (> 50); under 10 m %.1f s after the first fix "
-      "back (<= 3), final %.1f m (< 10), %zu reset(s); without the post-gap confirmation: "
+      "found after it (<= 3), final %.1f m (< 10), %zu reset(s); without the post-gap "
+      "confirmation: "
       "%.1f m at the gap's end, under 10 m after %.1f s, final %.1f m\n",
       r.duration_s, found_in_gap, gap_end, recovery, r.error->final_m, r.stats.resets, gap_end_off,
       recovery_off, o.error->final_m);

@@ -622,12 +622,20 @@ struct MapAidedNavigator::Impl {
         0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(p_xy).eigenvalues().maxCoeff()));
     maploc::Prior prior;
     const double radius = std::max(options.min_prior_radius_m, 3.0 * sigma_max * gate_scale + 30.0);
-    if (gap_candidate && (t_ns - gap_candidate->t_ns) * 1e-9 > 3.0) gap_candidate.reset();
+    // A candidate waits for the next try (at least 3 s, longer at a slow fix rate).
+    const double candidate_life_s =
+        std::max(3.0, options.fix_rate_hz > 0 ? 2.5 / options.fix_rate_hz : 0.0);
+    if (gap_candidate && (t_ns - gap_candidate->t_ns) * 1e-9 > candidate_life_s)
+      gap_candidate.reset();
     if (gap_candidate) {
-      // Confirm around where the candidate put the vehicle (moved by the estimate since).
-      const Eigen::Vector2d c = predicted.position.head<2>() + gap_candidate->innovation;
+      // Confirm with a search that holds both the estimate and where the candidate put the
+      // vehicle (moved by the estimate since): the correlation chooses between them, rather
+      // than finding the candidate's place again because it was told to look only there.
+      const Eigen::Vector2d c = predicted.position.head<2>() + 0.5 * gap_candidate->innovation;
       prior.position = enu.FromEnu(Eigen::Vector3d(c.x(), c.y(), 0));
-      prior.radius_m = std::max(options.min_prior_radius_m, 3.0 * gap_candidate->sigma_m + 20.0);
+      prior.radius_m =
+          std::max(options.min_prior_radius_m,
+                   0.5 * gap_candidate->innovation.norm() + 3.0 * gap_candidate->sigma_m + 20.0);
     } else if (radius <= options.max_local_radius_m) {
       prior.position =
           enu.FromEnu(Eigen::Vector3d(predicted.position.x(), predicted.position.y(), 0));
