@@ -248,8 +248,7 @@ TEST_F(NavRunTest, AGapOfBlankFramesIsBridgedAndLeftWithin10s) {
       "25 s of blank frames, accelerometer bias jump in the gap (flight %.0f s): %zu fixes found "
       "on them (0); error at the gap's end %.1f m (> 50); under 10 m %.1f s after the first fix "
       "found after it (<= 3), final %.1f m (< 10), %zu reset(s); without the post-gap "
-      "confirmation: "
-      "%.1f m at the gap's end, under 10 m after %.1f s, final %.1f m\n",
+      "confirmation: %.1f m at the gap's end, under 10 m after %.1f s, final %.1f m\n",
       r.duration_s, found_in_gap, gap_end, recovery, r.error->final_m, r.stats.resets, gap_end_off,
       recovery_off, o.error->final_m);
   EXPECT_EQ(found_in_gap, 0u);

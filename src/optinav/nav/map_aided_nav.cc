@@ -6,8 +6,10 @@
 #include <cmath>
 #include <deque>
 #include <random>
+#include <string>
 
 #include <ceres/ceres.h>
+#include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
 
@@ -327,8 +329,14 @@ struct MapAidedNavigator::Impl {
   };
   std::deque<RecentFix> recent_fixes;  // found fixes of the last 20 s
   // Relocalisation: the fix to restart at (the last refused fixes agreed on one offset from the
-  // estimate: the estimate drifted, the map did not), and otherwise where to search around.
-  std::optional<FixLog> restart_fix;
+  // estimate: the estimate drifted, the map did not; or two fixes agreed after a gap), why, and
+  // the velocity's sigma for the restart; otherwise where to search around.
+  struct Restart {
+    FixLog fix;
+    std::string why;
+    double velocity_sigma_m_s;
+  };
+  std::optional<Restart> restart_fix;
   struct SearchHint {
     int64_t t_ns;
     Eigen::Vector2d position;
@@ -338,8 +346,6 @@ struct MapAidedNavigator::Impl {
   std::optional<FixLog> candidate;  // initialisation: a global fix waiting for confirmation
   std::optional<int64_t> last_accepted_fix_ns;
   std::optional<FixLog> gap_candidate;  // after a gap: a far fix waiting for confirmation
-  bool after_gap_restart = false;       // restart_fix confirmed a gap_candidate
-  double last_gap_s = 0;                // ... after this long without an accepted fix
   struct Gnss {
     int64_t t_ns;
     Eigen::Vector3d enu;
@@ -615,6 +621,15 @@ struct MapAidedNavigator::Impl {
     ++stats.odometry_factors;
   }
 
+  // A found fix enters the estimate (the caller adds its factors or restarts at it).
+  void Accept(FixLog& log) {
+    log.accepted = true;
+    ++stats.fixes_accepted;
+    if (log.injected) ++stats.outliers_accepted;
+    last_accepted_fix_ns = log.t_ns;
+    gap_candidate.reset();
+  }
+
   void TryFix(int64_t t_ns, const cv::Mat& gray, const vio::NavState& predicted,
               const Eigen::Matrix3d& p_cov, double yaw_sigma_rad) {
     const Eigen::Matrix2d p_xy = p_cov.topLeftCorner<2, 2>();
@@ -690,17 +705,15 @@ struct MapAidedNavigator::Impl {
           options.gate_chi2 > 0 && log.chi2 > options.gate_chi2 * gate_scale * gate_scale;
       if (gap_candidate && (gap_candidate->innovation - e).norm() <= 3.0 * log.sigma_m + 20.0) {
         // A second fix at the candidate's offset: restart there (AddFrame, after the solve).
-        log.accepted = true;
         log.reason = "after a gap: confirmed, restarting at the fix";
-        ++stats.fixes_accepted;
-        if (log.injected) ++stats.outliers_accepted;
+        const double gap_s = (t_ns - last_accepted_fix_ns.value_or(t_ns)) * 1e-9;
+        Accept(log);
+        // After a gap the velocity drifted too (18 m/s after 60 s of IMU only, flight 2).
+        restart_fix = Restart{
+            log, fmt::format("after {:.0f} s without an accepted map fix, two agree", gap_s),
+            options.init_velocity_sigma_m_s};
         relocalize = true;
-        restart_fix = log;
-        after_gap_restart = true;
-        last_gap_s = last_accepted_fix_ns ? (t_ns - *last_accepted_fix_ns) * 1e-9 : 0.0;
-        gap_candidate.reset();
         recent_fixes.clear();
-        last_accepted_fix_ns = t_ns;
       } else if (after_gap && far && !gated) {
         log.reason = "after a gap: far from the estimate, waiting for a confirming fix";
         gap_candidate = log;
@@ -712,7 +725,9 @@ struct MapAidedNavigator::Impl {
         const bool mostly = refused_mostly(true);
         if (mostly || refused_consistently(5)) {
           relocalize = true;
-          if (refused_consistently(3)) restart_fix = log;
+          if (refused_consistently(3))
+            restart_fix = Restart{
+                log, "most map fixes of the last 20 s refused and the last ones agree", 5.0};
           recent_fixes.clear();
         }
         if (!rejecting_since_ns) rejecting_since_ns = t_ns;
@@ -721,11 +736,7 @@ struct MapAidedNavigator::Impl {
           rejecting_since_ns = t_ns;
         }
       } else {
-        log.accepted = true;
-        ++stats.fixes_accepted;
-        if (log.injected) ++stats.outliers_accepted;
-        last_accepted_fix_ns = t_ns;
-        gap_candidate.reset();
+        Accept(log);
         refused_mostly(false);
         rejecting_since_ns.reset();
         gate_scale = std::max(1.0, gate_scale / 2.0);
@@ -853,29 +864,17 @@ struct MapAidedNavigator::Impl {
       relocalize = false;
       const NavPose last = PoseOfNewest();
       ++stats.resets;
-      if (restart_fix && restart_fix->t_ns == t_ns) {
+      if (restart_fix && restart_fix->fix.t_ns == t_ns) {
         // Restart at the fix with the estimate's attitude, velocity and biases (the position
         // drifted, the rest is likely sound; the velocity loosened).
-        if (after_gap_restart) {
-          spdlog::warn(
-              "nav: after {:.0f} s without an accepted map fix, two agree at t={} s: restarting "
-              "at the fix ({:.0f} m from the estimate)",
-              last_gap_s, t_ns * 1e-9, restart_fix->innovation_m);
-        } else {
-          spdlog::warn(
-              "nav: most map fixes of the last 20 s refused at t={} s and the last ones agree: "
-              "restarting at the fix ({:.0f} m from the estimate)",
-              t_ns * 1e-9, restart_fix->innovation_m);
-        }
+        const FixLog& fix = restart_fix->fix;
+        spdlog::warn("nav: {} at t={} s: restarting at the fix ({:.0f} m from the estimate)",
+                     restart_fix->why, t_ns * 1e-9, fix.innovation_m);
         Eigen::Vector3d p = last.world_from_body.translation;
-        p.head<2>() = restart_fix->enu.head<2>();
+        p.head<2>() = fix.enu.head<2>();
         const double yaw_sigma = std::max(5.0 * kDeg, last.yaw_sigma_deg * kDeg);
-        // After a gap the velocity drifted too (18 m/s after 60 s of IMU only, flight 2).
-        const double velocity_sigma = after_gap_restart ? options.init_velocity_sigma_m_s : 5.0;
-        Start(t_ns, p, last.world_from_body.rotation.toRotationMatrix(), last.velocity,
-              restart_fix->sigma_m, yaw_sigma, velocity_sigma, backend->Newest().bias,
-              last.baro_bias_m);
-        after_gap_restart = false;
+        Start(t_ns, p, last.world_from_body.rotation.toRotationMatrix(), last.velocity, fix.sigma_m,
+              yaw_sigma, restart_fix->velocity_sigma_m_s, backend->Newest().bias, last.baro_bias_m);
         restart_fix.reset();
         return PoseOfNewest();
       }
