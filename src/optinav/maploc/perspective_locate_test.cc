@@ -93,7 +93,7 @@ TEST_F(PerspectiveFrames, WithPriorOnly) {
 }
 
 TEST_F(PerspectiveFrames, GlobalWithoutPriorOrHeading) {
-  const Outcome o = Run("global", 256, 256, 6, false, false, 104);
+  const Outcome o = Run("global", 256, 256, 10, false, false, 104);
   EXPECT_GE(o.good, 0.8 * o.frames) << "threshold 80 %";
   ExpectCalibrated(o);
 }
