@@ -131,16 +131,21 @@ void CorrelateSmall(const cv::Mat& image, const cv::Mat& tpl, cv::Mat* result) {
       float sum = 0;
       int k0 = 0;
 #if CV_SIMD
+      // Four independent accumulators: one would chain every multiply-add on the last.
       const int lanes = cv::v_float32::nlanes;
-      cv::v_float32 acc = cv::vx_setzero_f32();
-      k0 = len - len % lanes;
+      cv::v_float32 a0 = cv::vx_setzero_f32(), a1 = a0, a2 = a0, a3 = a0;
+      k0 = len - len % (4 * lanes);
       for (int y = 0; y < tpl.rows; ++y) {
         const float* m = image.ptr<float>(y + dy) + 2 * dx;
         const float* t = tpl.ptr<float>(y);
-        for (int k = 0; k < k0; k += lanes)
-          acc = cv::v_fma(cv::vx_load(m + k), cv::vx_load(t + k), acc);
+        for (int k = 0; k < k0; k += 4 * lanes) {
+          a0 = cv::v_fma(cv::vx_load(m + k), cv::vx_load(t + k), a0);
+          a1 = cv::v_fma(cv::vx_load(m + k + lanes), cv::vx_load(t + k + lanes), a1);
+          a2 = cv::v_fma(cv::vx_load(m + k + 2 * lanes), cv::vx_load(t + k + 2 * lanes), a2);
+          a3 = cv::v_fma(cv::vx_load(m + k + 3 * lanes), cv::vx_load(t + k + 3 * lanes), a3);
+        }
       }
-      sum = cv::v_reduce_sum(acc);
+      sum = cv::v_reduce_sum((a0 + a1) + (a2 + a3));
 #endif
       for (int y = 0; y < tpl.rows && k0 < len; ++y) {
         const float* m = image.ptr<float>(y + dy) + 2 * dx;
