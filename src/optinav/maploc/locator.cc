@@ -1106,7 +1106,7 @@ LocateResult Locator::CorrelationOn(const PreparedFrame& pf, const Prior& prior)
             o[x] = {q[x][0] * c2 - q[x][1] * s2, q[x][0] * s2 + q[x][1] * c2};
           }
         }
-        cv::dft(patch_padded, patch_spec, cv::DFT_COMPLEX_OUTPUT);
+        cv::dft(patch_padded, patch_spec, cv::DFT_COMPLEX_OUTPUT, patch);  // rows >= patch are 0
         // Two spectrum buffers, reused: a fresh map-sized allocation per heading costs page
         // faults comparable to the transform itself.
         cv::Mat& spec = spec_buffers[pending.size()];
