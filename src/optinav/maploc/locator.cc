@@ -10,11 +10,11 @@
 
 #include <fmt/format.h>
 #include <opencv2/core/eigen.hpp>
-#include <opencv2/core/hal/intrin.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "optinav/geo/raster.h"
 #include "optinav/maploc/aerial_camera.h"
+#include "optinav/maploc/field_correlation.h"
 #include "optinav/util/timer.h"
 
 namespace optinav::maploc {
@@ -97,6 +97,16 @@ struct OcLevel {
   cv::Mat field;  // CV_32FC2
 };
 
+// The sum of a field's magnitudes: its structure (a rotation keeps it).
+double FieldEnergy(const cv::Mat& field) {
+  double e = 0;
+  for (int y = 0; y < field.rows; ++y) {
+    const cv::Vec2f* p = field.ptr<cv::Vec2f>(y);
+    for (int x = 0; x < field.cols; ++x) e += std::sqrt(p[x][0] * p[x][0] + p[x][1] * p[x][1]);
+  }
+  return e;
+}
+
 struct OcPeak {
   double score = -1e300, x = 0, y = 0, heading = 0, second = 0, scale = 1;
 };
@@ -115,46 +125,6 @@ Eigen::Matrix3d ToEigen(const cv::Matx33d& c) {
 
 Eigen::Vector2d Apply(const Eigen::Matrix3d& h, const Eigen::Vector2d& p) {
   return (h * p.homogeneous()).hnormalized();
-}
-
-// What matchTemplate's TM_CCORR gives for two-channel float images (the real part of the
-// complex correlation of two orientation fields), computed directly: for a 32 px block and a
-// few pixels of search the spatial sums are ~3x faster than OpenCV's DFT-based path.
-void CorrelateSmall(const cv::Mat& image, const cv::Mat& tpl, cv::Mat* result) {
-  CV_Assert(image.type() == CV_32FC2 && tpl.type() == CV_32FC2);
-  const int rw = image.cols - tpl.cols + 1, rh = image.rows - tpl.rows + 1;
-  result->create(rh, rw, CV_32F);
-  const int len = 2 * tpl.cols;  // floats per template row
-  for (int dy = 0; dy < rh; ++dy) {
-    float* out = result->ptr<float>(dy);
-    for (int dx = 0; dx < rw; ++dx) {
-      float sum = 0;
-      int k0 = 0;
-#if CV_SIMD
-      // Four independent accumulators: one would chain every multiply-add on the last.
-      const int lanes = cv::v_float32::nlanes;
-      cv::v_float32 a0 = cv::vx_setzero_f32(), a1 = a0, a2 = a0, a3 = a0;
-      k0 = len - len % (4 * lanes);
-      for (int y = 0; y < tpl.rows; ++y) {
-        const float* m = image.ptr<float>(y + dy) + 2 * dx;
-        const float* t = tpl.ptr<float>(y);
-        for (int k = 0; k < k0; k += 4 * lanes) {
-          a0 = cv::v_fma(cv::vx_load(m + k), cv::vx_load(t + k), a0);
-          a1 = cv::v_fma(cv::vx_load(m + k + lanes), cv::vx_load(t + k + lanes), a1);
-          a2 = cv::v_fma(cv::vx_load(m + k + 2 * lanes), cv::vx_load(t + k + 2 * lanes), a2);
-          a3 = cv::v_fma(cv::vx_load(m + k + 3 * lanes), cv::vx_load(t + k + 3 * lanes), a3);
-        }
-      }
-      sum = cv::v_reduce_sum((a0 + a1) + (a2 + a3));
-#endif
-      for (int y = 0; y < tpl.rows && k0 < len; ++y) {
-        const float* m = image.ptr<float>(y + dy) + 2 * dx;
-        const float* t = tpl.ptr<float>(y);
-        for (int k = k0; k < len; ++k) sum += m[k] * t[k];
-      }
-      out[dx] = sum;
-    }
-  }
 }
 
 // Point matches between a work image and the map from block-wise orientation correlation around
@@ -178,7 +148,6 @@ void BlockMatches(const OcLevel& lv, const cv::Mat& gray, const cv::Mat& valid,
   }
   const cv::Rect box = cv::boundingRect(corners);
   if (box.area() <= 0 || box.area() > 4'000'000) return;
-
   Eigen::Matrix3d shift = Eigen::Matrix3d::Identity();
   shift(0, 2) = -box.x;
   shift(1, 2) = -box.y;
@@ -203,12 +172,7 @@ void BlockMatches(const OcLevel& lv, const cv::Mat& gray, const cv::Mat& valid,
       const cv::Rect win(box.x + bx - search, box.y + by - search, kBlock + 2 * search,
                          kBlock + 2 * search);
       if ((win & cv::Rect(0, 0, lv.field.cols, lv.field.rows)) != win) continue;
-      double energy = 0;
-      for (int y = 0; y < kBlock; ++y) {
-        const cv::Vec2f* t = tpl.ptr<cv::Vec2f>(y);
-        for (int x = 0; x < kBlock; ++x) energy += std::sqrt(t[x][0] * t[x][0] + t[x][1] * t[x][1]);
-      }
-      if (energy < 0.15 * kBlock * kBlock) continue;  // flat: no structure to align
+      if (FieldEnergy(tpl) < 0.15 * kBlock * kBlock) continue;  // flat: no structure to align
       CorrelateSmall(lv.field(win), tpl, &result);
       cv::Point best;
       double best_v = 0;
@@ -901,18 +865,17 @@ LocateResult Locator::CorrelationOn(const PreparedFrame& pf, const Prior& prior)
   const double frame_extent_m = std::max(pf.width, pf.height) * frame_gsd;
   // The frame's valid part, as wide as the rectified view can be.
   const double diag_m = std::hypot(gray.cols, gray.rows) * frame_gsd * max_scale;
-  // Coarse level: the frame about `oc_coarse_px` across; fine level: twice that resolution
-  // (never finer than the map or the frame).
-  // The levels sit on a fixed ladder, map gsd x 2^(k/4), so that frames from other altitudes
-  // reuse them: each level is the whole map's field, computed once (keyed by the exact gsd, every
-  // frame of a flight made a new one: 3 map-sized fields per fix, and the memory grew with them).
-  auto ladder = [&](double gsd) {
-    const double k = std::round(4.0 * std::log2(std::max(1.0, gsd / db.map_gsd_m)));
-    return std::make_pair(static_cast<int>(k), db.map_gsd_m * std::exp2(k / 4.0));
-  };
-  const auto [fine_k, fine_gsd] =
-      ladder(std::max(frame_gsd, frame_extent_m / (2.0 * im.options.oc_coarse_px)));
-  const double coarse_gsd = db.map_gsd_m * std::exp2((fine_k + 4) / 4.0);
+  // The levels sit on a fixed ladder, rung k at map gsd x 2^(k/4), so that frames from other
+  // altitudes reuse them: each level is the whole map's field, computed once (keyed by the exact
+  // gsd, every frame of a flight made a new one: 3 map-sized fields per fix, and the memory grew
+  // with them). Fine level: the rung nearest the frame ~2 x `oc_coarse_px` across (never finer
+  // than the map, nor much finer than the frame); coarse: 4 rungs up (twice the gsd); blocks: 4
+  // rungs down (not below the map).
+  auto rung = [&](int k) { return db.map_gsd_m * std::exp2(k / 4.0); };
+  const double fine_wanted = std::max(frame_gsd, frame_extent_m / (2.0 * im.options.oc_coarse_px));
+  const int fine_k =
+      static_cast<int>(std::lround(4.0 * std::log2(std::max(1.0, fine_wanted / db.map_gsd_m))));
+  const double fine_gsd = rung(fine_k), coarse_gsd = rung(fine_k + 4);
   auto level = [&](double gsd) -> const OcLevel& {
     const long key = std::lround(gsd * 1000.0);
     auto it = im.oc_levels.find(key);
@@ -955,6 +918,7 @@ LocateResult Locator::CorrelationOn(const PreparedFrame& pf, const Prior& prior)
   // Correlates the frame, rotated to each heading and scaled by each factor, with the map
   // around `centre` (map px) within `radius_px` (map px). Returns the best peak (map pixels of
   // the work image's centre) of each heading and scale, best first.
+  const auto by_score = [](const OcPeak& x, const OcPeak& y) { return x.score > y.score; };
   auto correlate = [&](const OcLevel& lv, const std::vector<double>& headings,
                        const std::vector<double>& factors, const Eigen::Vector2d& centre,
                        double radius_px) {
@@ -1061,7 +1025,7 @@ LocateResult Locator::CorrelationOn(const PreparedFrame& pf, const Prior& prior)
       }
       pending.clear();
     };
-    cv::Mat patch_padded(ny, nx, CV_32FC2), patch_spec, rotated;
+    cv::Mat patch_padded = cv::Mat::zeros(ny, nx, CV_32FC2), patch_spec, rotated;
     for (double factor : factors) {
       // The frame's field once per scale, on a canvas at the level's resolution: canvas
       // q = s (f - fc) + qc. Each heading rotates that field instead of re-deriving it from a
@@ -1079,12 +1043,8 @@ LocateResult Locator::CorrelationOn(const PreparedFrame& pf, const Prior& prior)
       cv::erode(scaled_valid, scaled_valid, cv::Mat(), cv::Point(-1, -1), 2);
       const cv::Mat field = OrientationField(scaled, scaled_valid);
       // The field's total magnitude, which a rotation keeps (the patch holds the whole canvas).
-      double weight = 0;
-      for (int y = 0; y < field.rows; ++y) {
-        const cv::Vec2f* p = field.ptr<cv::Vec2f>(y);
-        for (int x = 0; x < field.cols; ++x)
-          weight += std::sqrt(p[x][0] * p[x][0] + p[x][1] * p[x][1]);
-      }
+      const double weight = FieldEnergy(field);
+      if (weight < 1.0) continue;  // no structure at this scale
       for (double h : headings) {
         const double ang = h * kDeg + grid_rot;
         const double ca = std::cos(ang), sa = std::sin(ang);
@@ -1094,11 +1054,10 @@ LocateResult Locator::CorrelationOn(const PreparedFrame& pf, const Prior& prior)
         to_q(1, 2) = qc.y - (to_q(1, 0) * pc + to_q(1, 1) * pc);
         cv::warpAffine(field, rotated, to_q, cv::Size(patch, patch),
                        cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT);
-        if (weight < 1.0 || patch > nx || patch > ny) continue;
-        // The warped field turned by e^(2ia) into the zero-padded block.
+        // The warped field turned by e^(2ia) into the block (outside the patch: zeros, never
+        // written).
         const float c2 = static_cast<float>(std::cos(2 * ang));
         const float s2 = static_cast<float>(std::sin(2 * ang));
-        patch_padded.setTo(0);
         for (int y = 0; y < patch; ++y) {
           const cv::Vec2f* q = rotated.ptr<cv::Vec2f>(y);
           cv::Vec2f* o = patch_padded.ptr<cv::Vec2f>(y);
@@ -1116,8 +1075,7 @@ LocateResult Locator::CorrelationOn(const PreparedFrame& pf, const Prior& prior)
       }
     }
     flush();
-    std::sort(peaks.begin(), peaks.end(),
-              [](const OcPeak& x, const OcPeak& y) { return x.score > y.score; });
+    std::sort(peaks.begin(), peaks.end(), by_score);
     return peaks;
   };
 
@@ -1156,7 +1114,7 @@ LocateResult Locator::CorrelationOn(const PreparedFrame& pf, const Prior& prior)
         Eigen::Vector2d(p.x, p.y) - m.block<2, 2>(0, 0) * Eigen::Vector2d(fc.x, fc.y);
     return m;
   };
-  const double block_gsd = db.map_gsd_m * std::exp2(std::max(0, fine_k - 4) / 4.0);
+  const double block_gsd = rung(std::max(0, fine_k - 4));
   const OcLevel& block_level = level(block_gsd);
   const OcLevel& fine_level = level(fine_gsd);
   struct Candidate {
@@ -1220,7 +1178,7 @@ LocateResult Locator::CorrelationOn(const PreparedFrame& pf, const Prior& prior)
   for (const bool pre_search : {global && !prior.heading_deg, false}) {
     std::vector<OcPeak> coarse_peaks;
     if (pre_search) {
-      const double coarser_gsd = db.map_gsd_m * std::exp2((fine_k + 6) / 4.0);
+      const double coarser_gsd = rung(fine_k + 6);
       search_peaks = correlate(level(coarser_gsd), headings, scales, c_px, radius_px);
       for (const OcPeak& seed : distinct_places(search_peaks, 2 * im.options.oc_global_verify)) {
         const std::vector<OcPeak> refined =
@@ -1228,8 +1186,7 @@ LocateResult Locator::CorrelationOn(const PreparedFrame& pf, const Prior& prior)
                       {seed.scale}, {seed.x, seed.y}, 1.5 * coarser_gsd / db.map_gsd_m);
         if (!refined.empty()) coarse_peaks.push_back(refined[0]);
       }
-      std::sort(coarse_peaks.begin(), coarse_peaks.end(),
-                [](const OcPeak& x, const OcPeak& y) { return x.score > y.score; });
+      std::sort(coarse_peaks.begin(), coarse_peaks.end(), by_score);
     } else {
       coarse_peaks = search_peaks = correlate(coarse, headings, scales, c_px, radius_px);
     }
