@@ -41,6 +41,22 @@ cv::Mat ToGray(const cv::Mat& frame) {
   return gray;
 }
 
+// The adaptive method order (locator.h): correlation first after this many feature failures in
+// a row, features first again on every this-many-th call.
+constexpr int kFeatureFailuresForCorrelationFirst = 3;
+constexpr int kFeaturesRetryEvery = 10;
+
+// The coarse search's heading spacing in heading steps (LocateOptions::oc_heading_step_deg), and
+// the distinct places then refined in heading, with a heading given and over the full circle.
+// Measured on 200 bench frames each (bench/RESULTS.md): with a heading, 2x spacing and 2 places
+// kept every figure (199/200 within 25 m) at 0.75x the search time; without, 3x with 4 places
+// gave 198/200 within 25 m at 152 ms per frame, 2x 197/200 at 197 ms, 1x 196/200 at 341 ms.
+constexpr int kSparseWithHeading = 2, kSparseCircle = 3;
+constexpr int kRefinedPlacesWithHeading = 2, kRefinedPlacesCircle = 4;
+
+// Up to this many placements a correlation is computed directly, not through transforms.
+constexpr int kDirectPlacements = 121;
+
 // Below this grey-level standard deviation a frame carries no structure to correlate.
 constexpr double kMinFrameContrast = 1.0;
 
@@ -308,6 +324,9 @@ struct Locator::Impl {
   std::unique_ptr<geo::GeoRaster> ortho;
   std::string ortho_error;
   bool ortho_tried = false;
+  // The adaptive method order (Locator::Order::kAdaptive): features' failures in a row, calls.
+  int feature_failures = 0;
+  long adaptive_calls = 0;
   // Undistortion pixel maps by frame size.
   std::mutex undistort_mutex;
   std::map<std::pair<int, int>, std::pair<cv::Mat, cv::Mat>> undistort_maps;
@@ -595,13 +614,23 @@ LocateResult Locator::Locate(const cv::Mat& frame, const Prior& prior, Order ord
   // Orientation correlation also searches globally, so it backs features up with or without
   // a prior.
   const bool oc_possible = impl_->options.allow_orientation_correlation && pf.error.empty();
-  const bool oc_first = oc_possible && order == Order::kCorrelationFirst;
-  LocateResult first = oc_first ? CorrelationOn(pf, prior) : FeaturesOn(pf, prior);
+  Impl& im = *impl_;
+  const bool adaptive_oc_first = im.feature_failures >= kFeatureFailuresForCorrelationFirst &&
+                                 im.adaptive_calls % kFeaturesRetryEvery != 0;
+  ++im.adaptive_calls;
+  const bool oc_first = oc_possible && (order == Order::kCorrelationFirst ||
+                                        (order == Order::kAdaptive && adaptive_oc_first));
+  auto features = [&]() {
+    LocateResult r = FeaturesOn(pf, prior);
+    im.feature_failures = r.localized ? 0 : im.feature_failures + 1;
+    return r;
+  };
+  LocateResult first = oc_first ? CorrelationOn(pf, prior) : features();
   if (first.localized || (!oc_first && !oc_possible)) {
     first.times.total_ms = total.ElapsedSeconds() * 1e3;
     return first;
   }
-  LocateResult second = oc_first ? FeaturesOn(pf, prior) : CorrelationOn(pf, prior);
+  LocateResult second = oc_first ? features() : CorrelationOn(pf, prior);
   if (!second.localized) {
     const LocateResult& feat = oc_first ? second : first;
     const LocateResult& oc = oc_first ? first : second;
@@ -612,6 +641,11 @@ LocateResult Locator::Locate(const cv::Mat& frame, const Prior& prior, Order ord
   second.times.estimation_ms += first.times.estimation_ms;
   second.times.total_ms = total.ElapsedSeconds() * 1e3;
   return second;
+}
+
+void Locator::ResetAdaptiveOrder() {
+  impl_->feature_failures = 0;
+  impl_->adaptive_calls = 0;
 }
 
 LocateResult Locator::LocateByFeatures(const cv::Mat& frame, const Prior& prior) {
@@ -942,11 +976,15 @@ LocateResult Locator::CorrelationOn(const PreparedFrame& pf, const Prior& prior)
     const int ny = cv::getOptimalDFTSize(span_y + patch + 1);
     const cv::Rect want(tx0, ty0, span_x + patch, span_y + patch);
     const cv::Rect src = want & cv::Rect(0, 0, lv.field.cols, lv.field.rows);
+    // A few placements (the refinement around a peak) are cheaper to correlate directly than
+    // through transforms of the whole block: 49 placements of a 191 px patch cost a third of one
+    // 200 x 200 transform.
+    const bool direct = (span_x + 1) * (span_y + 1) <= kDirectPlacements;
     cv::Mat padded = cv::Mat::zeros(ny, nx, CV_32FC2), map_spec;
     if (src.area() > 0) {
       lv.field(src).copyTo(padded(cv::Rect(src.x - tx0, src.y - ty0, src.width, src.height)));
     }
-    cv::dft(padded, map_spec, cv::DFT_COMPLEX_OUTPUT);
+    if (!direct) cv::dft(padded, map_spec, cv::DFT_COMPLEX_OUTPUT);
     // The best placement of one heading and scale within the search disc, and the best one
     // outside its neighbourhood (the distinctness of the peak).
     auto add_peak = [&](const cv::Mat& corr, double h, double factor, double weight) {
@@ -1025,7 +1063,7 @@ LocateResult Locator::CorrelationOn(const PreparedFrame& pf, const Prior& prior)
       }
       pending.clear();
     };
-    cv::Mat patch_padded = cv::Mat::zeros(ny, nx, CV_32FC2), patch_spec, rotated;
+    cv::Mat patch_padded = cv::Mat::zeros(ny, nx, CV_32FC2), patch_spec, direct_corr;
     for (double factor : factors) {
       // The frame's field once per scale, on a canvas at the level's resolution: canvas
       // q = s (f - fc) + qc. Each heading rotates that field instead of re-deriving it from a
@@ -1048,22 +1086,19 @@ LocateResult Locator::CorrelationOn(const PreparedFrame& pf, const Prior& prior)
       for (double h : headings) {
         const double ang = h * kDeg + grid_rot;
         const double ca = std::cos(ang), sa = std::sin(ang);
-        // patch u = R(a) (q - qc) + pc; the inverse map u -> q for warpAffine.
+        // patch u = R(a) (q - qc) + pc; RotateField takes the inverse map u -> q.
         cv::Matx23d to_q(ca, sa, 0, -sa, ca, 0);
         to_q(0, 2) = qc.x - (to_q(0, 0) * pc + to_q(0, 1) * pc);
         to_q(1, 2) = qc.y - (to_q(1, 0) * pc + to_q(1, 1) * pc);
-        cv::warpAffine(field, rotated, to_q, cv::Size(patch, patch),
-                       cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT);
         // The warped field turned by e^(2ia) into the block (outside the patch: zeros, never
         // written).
-        const float c2 = static_cast<float>(std::cos(2 * ang));
-        const float s2 = static_cast<float>(std::sin(2 * ang));
-        for (int y = 0; y < patch; ++y) {
-          const cv::Vec2f* q = rotated.ptr<cv::Vec2f>(y);
-          cv::Vec2f* o = patch_padded.ptr<cv::Vec2f>(y);
-          for (int x = 0; x < patch; ++x) {
-            o[x] = {q[x][0] * c2 - q[x][1] * s2, q[x][0] * s2 + q[x][1] * c2};
-          }
+        cv::Mat patch_roi = patch_padded(cv::Rect(0, 0, patch, patch));
+        RotateField(field, to_q, 2 * ang, &patch_roi);
+        if (direct) {
+          CorrelateSmall(padded(cv::Rect(0, 0, span_x + patch, span_y + patch)), patch_roi,
+                         &direct_corr);
+          add_peak(direct_corr, h, factor, weight);
+          continue;
         }
         cv::dft(patch_padded, patch_spec, cv::DFT_COMPLEX_OUTPUT, patch);  // rows >= patch are 0
         // Two spectrum buffers, reused: a fresh map-sized allocation per heading costs page
@@ -1084,14 +1119,21 @@ LocateResult Locator::CorrelationOn(const PreparedFrame& pf, const Prior& prior)
   stage.Restart();
   std::vector<double> headings;
   const double step = im.options.oc_heading_step_deg;
+  // The transform search steps kSparseWithHeading (kSparseCircle over the full circle) times
+  // the heading step; the best few distinct places are then refined at +-half that spacing by
+  // direct correlation (a few placements: a tenth of a transform each). Map-wide, the pre-search
+  // below does its own refinement.
+  double spacing = step;
   if (prior.heading_deg) {
     const double sigma = std::max(0.0, prior.heading_sigma_deg);
-    const int k = static_cast<int>(std::ceil(sigma / step));
-    for (int i = -k; i <= k; ++i)
-      headings.push_back(*prior.heading_deg + i * sigma / std::max(k, 1));
+    const int k = static_cast<int>(std::ceil(sigma / (step * kSparseWithHeading)));
+    spacing = sigma / std::max(k, 1);
+    for (int i = -k; i <= k; ++i) headings.push_back(*prior.heading_deg + i * spacing);
   } else {
-    for (double h = 0; h < 360.0 - 1e-9; h += step) headings.push_back(h);
+    if (!global) spacing = step * kSparseCircle;
+    for (double h = 0; h < 360.0 - 1e-9; h += spacing) headings.push_back(h);
   }
+  const bool refine_headings = !global && spacing > step && !headings.empty();
   const double exclusion_px = 0.25 * diag_m / db.map_gsd_m;
   auto distinct_places = [&](const std::vector<OcPeak>& peaks, int count) {
     std::vector<OcPeak> out;
@@ -1175,7 +1217,9 @@ LocateResult Locator::CorrelationOn(const PreparedFrame& pf, const Prior& prior)
   std::vector<Candidate> candidates;
   size_t bi = 0, runner_up = 0;
   bool confirmed = false;
-  for (const bool pre_search : {global && !prior.heading_deg, false}) {
+  const bool with_pre_search = global && !prior.heading_deg;
+  for (const bool pre_search : {true, false}) {
+    if (pre_search && !with_pre_search) continue;  // one search, at the coarse level
     std::vector<OcPeak> coarse_peaks;
     if (pre_search) {
       const double coarser_gsd = rung(fine_k + 6);
@@ -1189,6 +1233,18 @@ LocateResult Locator::CorrelationOn(const PreparedFrame& pf, const Prior& prior)
       std::sort(coarse_peaks.begin(), coarse_peaks.end(), by_score);
     } else {
       coarse_peaks = search_peaks = correlate(coarse, headings, scales, c_px, radius_px);
+      if (refine_headings) {
+        coarse_peaks.clear();
+        const int places = prior.heading_deg ? kRefinedPlacesWithHeading : kRefinedPlacesCircle;
+        for (const OcPeak& seed : distinct_places(search_peaks, places)) {
+          const double d = spacing / 2;
+          const std::vector<OcPeak> refined =
+              correlate(coarse, {seed.heading - d, seed.heading, seed.heading + d}, {seed.scale},
+                        {seed.x, seed.y}, 1.5 * coarse_gsd / db.map_gsd_m);
+          if (!refined.empty()) coarse_peaks.push_back(refined[0]);
+        }
+        std::sort(coarse_peaks.begin(), coarse_peaks.end(), by_score);
+      }
     }
     if (coarse_peaks.empty() || coarse_peaks[0].score <= 0) {
       if (pre_search) continue;

@@ -135,11 +135,18 @@ class Locator {
   Locator(const MapDatabase& db, const LocateOptions& options = {});
   ~Locator();
   // Which method is tried first; the other runs only when the first fails. Orientation
-  // correlation first pays when the caller knows features keep failing (an outdated map).
-  enum class Order { kFeaturesFirst, kCorrelationFirst };
-  // `frame`: 8-bit grey or BGR. Never throws on bad frames: the result says why.
+  // correlation first pays when features keep failing (a map years older than the frames: they
+  // then cost a third of the correlation's time for nothing). kAdaptive, the default, learns it
+  // from the frames this locator has seen: features first until they have failed on 3 frames in
+  // a row, then correlation first, with features first again on every 10th call to notice when
+  // they work again (any success resets the count).
+  enum class Order { kAdaptive, kFeaturesFirst, kCorrelationFirst };
+  // `frame`: 8-bit grey or BGR. Never throws on bad frames: the result says why. Not thread-safe
+  // (caches and the adaptive order): one locator per thread.
   LocateResult Locate(const cv::Mat& frame, const Prior& prior = {},
-                      Order order = Order::kFeaturesFirst);
+                      Order order = Order::kAdaptive);
+  // Forgets what kAdaptive has learnt (a new flight).
+  void ResetAdaptiveOrder();
 
   // Individual methods (for tests and benchmarks).
   LocateResult LocateByFeatures(const cv::Mat& gray, const Prior& prior);

@@ -158,6 +158,7 @@ MissionResult Mission::Run(const MissionOptions& o) {
   if (o.estimator == "nav")
     return RunNavMission(im.db, im.frames, im.frames_gsd, im.locate_options, o);
   maploc::Locator& locator = im.locator;
+  locator.ResetAdaptiveOrder();  // each mission learns the method order afresh
   const double map_gsd = im.db.map_gsd_m;
   const double altitude = o.altitude_m > 0 ? o.altitude_m : im.db.options.altitude_m;
   const double fix_sigma_feat = o.feature_fix_sigma_m > 0 ? o.feature_fix_sigma_m : 1.5 * map_gsd;
@@ -201,8 +202,7 @@ MissionResult Mission::Run(const MissionOptions& o) {
   geo::LatLon truth = o.start;
   geo::LatLon last_fix = o.start;
   double last_fix_t = 0;
-  int failures = 0;          // consecutive steps without an accepted fix
-  int feature_failures = 0;  // consecutive frames the feature method did not localize
+  int failures = 0;  // consecutive steps without an accepted fix
   Eigen::Vector2d last_command_step = Eigen::Vector2d::Zero();  // commanded ENU displacement
   FrameOdometry odometry;
   // The attitude error of what locate and the odometry are given (Gauss-Markov per axis).
@@ -362,19 +362,8 @@ MissionResult Mission::Run(const MissionOptions& o) {
       prior.extra_centres.clear();
       log.global_search = true;
     }
-    // Method order: once features have failed on the last 3 frames (an outdated map), try
-    // orientation correlation first, and features first again every 10th step to notice when
-    // they work again.
-    const bool oc_first = feature_failures >= 3 && step % 10 != 0;
-    const maploc::LocateResult r =
-        locator.Locate(frame, prior,
-                       oc_first ? maploc::Locator::Order::kCorrelationFirst
-                                : maploc::Locator::Order::kFeaturesFirst);
-    if (r.localized && r.method == "features") {
-      feature_failures = 0;
-    } else if (!oc_first || !r.localized) {
-      ++feature_failures;  // features were tried and failed
-    }
+    // Method order: the locator's adaptive one (correlation first once features keep failing).
+    const maploc::LocateResult r = locator.Locate(frame, prior);
     log.times.extraction_ms = r.times.extraction_ms;
     log.times.matching_ms = r.times.matching_ms;
     log.times.estimation_ms = r.times.estimation_ms;
