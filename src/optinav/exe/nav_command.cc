@@ -49,6 +49,11 @@ int RunNav(int argc, char** argv) {
   command
       .add_option("--fix-rate", st.nav.fix_rate_hz, "map fixes tried per second (0: every frame)")
       ->capture_default_str();
+  command
+      .add_option("--global-search-interval", st.nav.global_search_interval_s,
+                  "seconds of flight between global searches (take-off, relocalisation; each "
+                  "costs seconds on one core)")
+      ->capture_default_str();
   command.add_flag("!--no-odometry", st.nav.use_odometry, "no frame-to-frame velocity factors");
   command
       .add_option("--odometry-sigma-px", st.nav.odometry_pixel_sigma,

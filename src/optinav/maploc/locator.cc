@@ -51,7 +51,9 @@ constexpr int kFeaturesRetryEvery = 10;
 // Measured on 200 bench frames each (bench/RESULTS.md): with a heading, 2x spacing and 2 places
 // kept every figure (199/200 within 25 m) at 0.75x the search time; without, 3x with 4 places
 // gave 198/200 within 25 m at 152 ms per frame, 2x 197/200 at 197 ms, 1x 196/200 at 341 ms.
-constexpr int kSparseWithHeading = 2, kSparseCircle = 3;
+// Map-wide (the pre-search and its fallback), 2x: on 100 frames 96/100 within 25 m as with 1x,
+// at half the time; 3x gave 94/100.
+constexpr int kSparseWithHeading = 2, kSparseCircle = 3, kSparseGlobal = 2;
 constexpr int kRefinedPlacesWithHeading = 2, kRefinedPlacesCircle = 4;
 
 // Up to this many placements a correlation is computed directly, not through transforms.
@@ -1119,10 +1121,10 @@ LocateResult Locator::CorrelationOn(const PreparedFrame& pf, const Prior& prior)
   stage.Restart();
   std::vector<double> headings;
   const double step = im.options.oc_heading_step_deg;
-  // The transform search steps kSparseWithHeading (kSparseCircle over the full circle) times
-  // the heading step; the best few distinct places are then refined at +-half that spacing by
-  // direct correlation (a few placements: a tenth of a transform each). Map-wide, the pre-search
-  // below does its own refinement.
+  // The transform search steps kSparseWithHeading (kSparseCircle over the full circle around a
+  // prior, kSparseGlobal map-wide) times the heading step; the best few distinct places are then
+  // refined at +-half that spacing by direct correlation (a few placements: a tenth of a
+  // transform each). The global pre-search's seeds get the same refinement at the coarse level.
   double spacing = step;
   if (prior.heading_deg) {
     const double sigma = std::max(0.0, prior.heading_sigma_deg);
@@ -1130,10 +1132,10 @@ LocateResult Locator::CorrelationOn(const PreparedFrame& pf, const Prior& prior)
     spacing = sigma / std::max(k, 1);
     for (int i = -k; i <= k; ++i) headings.push_back(*prior.heading_deg + i * spacing);
   } else {
-    if (!global) spacing = step * kSparseCircle;
+    spacing = step * (global ? kSparseGlobal : kSparseCircle);
     for (double h = 0; h < 360.0 - 1e-9; h += spacing) headings.push_back(h);
   }
-  const bool refine_headings = !global && spacing > step && !headings.empty();
+  const bool refine_headings = spacing > step && !headings.empty();
   const double exclusion_px = 0.25 * diag_m / db.map_gsd_m;
   auto distinct_places = [&](const std::vector<OcPeak>& peaks, int count) {
     std::vector<OcPeak> out;
@@ -1225,9 +1227,9 @@ LocateResult Locator::CorrelationOn(const PreparedFrame& pf, const Prior& prior)
       const double coarser_gsd = rung(fine_k + 6);
       search_peaks = correlate(level(coarser_gsd), headings, scales, c_px, radius_px);
       for (const OcPeak& seed : distinct_places(search_peaks, 2 * im.options.oc_global_verify)) {
-        const std::vector<OcPeak> refined =
-            correlate(coarse, {seed.heading - step / 2, seed.heading, seed.heading + step / 2},
-                      {seed.scale}, {seed.x, seed.y}, 1.5 * coarser_gsd / db.map_gsd_m);
+        const std::vector<OcPeak> refined = correlate(
+            coarse, {seed.heading - spacing / 2, seed.heading, seed.heading + spacing / 2},
+            {seed.scale}, {seed.x, seed.y}, 1.5 * coarser_gsd / db.map_gsd_m);
         if (!refined.empty()) coarse_peaks.push_back(refined[0]);
       }
       std::sort(coarse_peaks.begin(), coarse_peaks.end(), by_score);

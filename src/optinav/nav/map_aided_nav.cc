@@ -283,6 +283,7 @@ std::string NavOptions::Check() const {
     return "odometry sigmas must be > 0";
   if (!(odometry_rotation_sigma_scale >= 0)) return "odometry_rotation_sigma_scale must be >= 0";
   if (!(fix_rate_hz >= 0)) return "fix_rate_hz must be >= 0";
+  if (!(global_search_interval_s >= 0)) return "global_search_interval_s must be >= 0";
   if (!vio::ParseGnssNorm(map_norm)) return "map_norm must be l2, huber or tukey, got " + map_norm;
   if (!(fix_sigma_floor_m > 0) || !(fix_altitude_sigma_rel > 0) || !(fix_sigma_scale > 0))
     return "fix sigmas must be > 0";
@@ -316,7 +317,7 @@ struct MapAidedNavigator::Impl {
   int64_t last_frame_ns = 0;
   bool have_frame = false;
   Eigen::MatrixXd covariance;  // of the newest state (15x15)
-  std::optional<int64_t> last_fix_try_ns;
+  std::optional<int64_t> last_fix_try_ns, last_global_try_ns;
   std::optional<int64_t> rejecting_since_ns;
   double gate_scale = 1.0;
   int odometry_rejections = 0;  // consecutive
@@ -506,6 +507,15 @@ struct MapAidedNavigator::Impl {
       prior.radius_m = options.init_confirm_m + 40.0 * dt;
       prior.heading_deg = fix_attitude[2];
       prior.heading_sigma_deg = 20;
+    }
+    if (!prior.position) {
+      // A global search costs seconds: at most one per global_search_interval_s of flight, as a
+      // locator on one core in real time could do.
+      if (last_global_try_ns &&
+          (t_ns - *last_global_try_ns) * 1e-9 < options.global_search_interval_s - 1e-3) {
+        return;
+      }
+      last_global_try_ns = t_ns;
     }
     FixLog log = Locate(t_ns, gray, prior);
     if (!log.found) {

@@ -114,6 +114,11 @@ struct NavOptions {
   // relocalisation's path (several agreeing refusals) instead.
   double confirm_after_gap_s = 10.0;
   double max_local_radius_m = 1500;  // a prior radius beyond this: global search
+  // A global search (no position to search around: take-off, after a relocalisation) costs 1-6 s
+  // on one core (640x480 frames over the NAIP tile: ~5 s), so at most one per this many seconds
+  // of flight, as a locator on one core could keep up in real time; local fixes keep the fix
+  // rate. At 1 Hz, bench flight 1 (no fix possible for its first 32 s) ran at 1.1x real time.
+  double global_search_interval_s = 3.0;
   double min_prior_radius_m = 100;
   // Initialisation from map fixes: the first fix found globally must be confirmed by a second
   // one within this distance plus 40 m/s times the time between them.
