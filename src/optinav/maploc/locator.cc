@@ -271,7 +271,10 @@ namespace {
 
 // The bookkeeping of one localization attempt: method, stage timing and the two exits.
 struct Attempt {
-  explicit Attempt(const char* method) { result.method = method; }
+  explicit Attempt(const char* method) {
+    result.method = method;
+    result.methods_tried = {method};
+  }
   // Ends without a fix, saying why.
   LocateResult Fail(std::string reason) {
     result.reason = std::move(reason);
@@ -633,6 +636,7 @@ LocateResult Locator::Locate(const cv::Mat& frame, const Prior& prior, Order ord
     return first;
   }
   LocateResult second = oc_first ? features() : CorrelationOn(pf, prior);
+  second.methods_tried.insert(second.methods_tried.begin(), first.method);
   if (!second.localized) {
     const LocateResult& feat = oc_first ? second : first;
     const LocateResult& oc = oc_first ? first : second;

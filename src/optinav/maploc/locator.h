@@ -105,8 +105,9 @@ struct StageTimes {
 
 struct LocateResult {
   bool localized = false;
-  std::string reason;  // why not (or "ok")
-  std::string method;  // "features" | "orientation-correlation" | ""
+  std::string reason;                      // why not (or "ok")
+  std::string method;                      // "features" | "orientation-correlation" | ""
+  std::vector<std::string> methods_tried;  // in the order Locate tried them
   // The vehicle's position (the camera's nadir point).
   Eigen::Vector2d map_px = Eigen::Vector2d::Zero();  // map pixels
   Eigen::Vector2d crs_xy = Eigen::Vector2d::Zero();  // in the map CRS

@@ -4,6 +4,8 @@
 // figures are the vehicle's position (camera nadir), not the image centre's.
 #include <algorithm>
 #include <map>
+#include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -74,6 +76,62 @@ class PerspectiveFrames : public testmaps::Naip2009MapTest {
     EXPECT_GE(o.within_2sigma, 0.9 * o.localized);
   }
 };
+
+// The default method order learns from the flight: on frames whose features never match the
+// 2009 map, features are tried first on the first 3 calls only, then correlation first, with
+// features first again on every 10th call.
+TEST_F(PerspectiveFrames, AdaptiveOrderSkipsFailingFeatures) {
+  Locator locator(*db_);
+  const geo::GeoRaster raster = geo::GeoRaster::Open(testmaps::Naip("20170827"));
+  PerspectiveFrameOptions fo;
+  fo.width = fo.height = 256;
+  const std::vector<PerspectiveFrame> frames = MakePerspectiveFrames(raster, 12, fo, 7);
+  auto given = [](const PerspectiveFrame& f) {
+    Prior p;
+    p.altitude_m = f.given_altitude_m;
+    p.roll_deg = f.given_roll_deg;
+    p.pitch_deg = f.given_pitch_deg;
+    p.position = f.prior;
+    p.radius_m = f.prior_radius_m;
+    p.heading_deg = f.given_heading_deg;
+    p.heading_sigma_deg = f.heading_sigma_deg;
+    return p;
+  };
+  std::vector<std::string> first_tried;
+  for (int pass = 0; pass < 2; ++pass) {
+    first_tried.clear();
+    for (const PerspectiveFrame& f : frames) {
+      const LocateResult r = locator.Locate(f.image, given(f));
+      ASSERT_FALSE(r.methods_tried.empty());
+      first_tried.push_back(r.methods_tried.front());
+      if (r.methods_tried.front() == "features") {
+        EXPECT_FALSE(r.localized && r.method == "features") << "the 2009 features matched";
+        EXPECT_EQ(r.methods_tried.size(), 2u);  // then the correlation
+      } else {
+        EXPECT_EQ(r.method, "orientation-correlation");
+      }
+    }
+    const std::vector<std::string> expected = {"features",
+                                               "features",
+                                               "features",
+                                               "orientation-correlation",
+                                               "orientation-correlation",
+                                               "orientation-correlation",
+                                               "orientation-correlation",
+                                               "orientation-correlation",
+                                               "orientation-correlation",
+                                               "orientation-correlation",
+                                               "features",  // the 11th call: are features back?
+                                               "orientation-correlation"};
+    EXPECT_EQ(first_tried, expected) << "pass " << pass;
+    locator.ResetAdaptiveOrder();  // the second pass starts afresh, as a new flight
+  }
+  // An explicit order is kept.
+  const LocateResult r =
+      locator.Locate(frames[0].image, given(frames[0]), Locator::Order::kFeaturesFirst);
+  ASSERT_FALSE(r.methods_tried.empty());
+  EXPECT_EQ(r.methods_tried.front(), "features");
+}
 
 TEST_F(PerspectiveFrames, WithPriorAndHeading) {
   // Measured 49/50 (98 %; 47/50 before the correlation surface was made exact, docs/MAPDB.md).
