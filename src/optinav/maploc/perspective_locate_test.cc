@@ -37,19 +37,8 @@ class PerspectiveFrames : public testmaps::Naip2009MapTest {
       fo.width = width;
       fo.height = height;
       for (const PerspectiveFrame& f : MakePerspectiveFrames(raster, per_year, fo, seed)) {
-        Prior p;
-        p.altitude_m = f.given_altitude_m;
-        p.roll_deg = f.given_roll_deg;
-        p.pitch_deg = f.given_pitch_deg;
-        if (with_prior) {
-          p.position = f.prior;
-          p.radius_m = f.prior_radius_m;
-        }
-        if (with_heading) {
-          p.heading_deg = f.given_heading_deg;
-          p.heading_sigma_deg = f.heading_sigma_deg;
-        }
-        const LocateResult r = locator.Locate(f.image, p);
+        const LocateResult r =
+            locator.Locate(f.image, testmaps::GivenPrior(f, with_prior, with_heading));
         ++o.frames;
         if (!r.localized) continue;
         ++o.localized;
@@ -86,17 +75,7 @@ TEST_F(PerspectiveFrames, AdaptiveOrderSkipsFailingFeatures) {
   PerspectiveFrameOptions fo;
   fo.width = fo.height = 256;
   const std::vector<PerspectiveFrame> frames = MakePerspectiveFrames(raster, 12, fo, 7);
-  auto given = [](const PerspectiveFrame& f) {
-    Prior p;
-    p.altitude_m = f.given_altitude_m;
-    p.roll_deg = f.given_roll_deg;
-    p.pitch_deg = f.given_pitch_deg;
-    p.position = f.prior;
-    p.radius_m = f.prior_radius_m;
-    p.heading_deg = f.given_heading_deg;
-    p.heading_sigma_deg = f.heading_sigma_deg;
-    return p;
-  };
+  auto given = [](const PerspectiveFrame& f) { return testmaps::GivenPrior(f, true, true); };
   std::vector<std::string> first_tried;
   for (int pass = 0; pass < 2; ++pass) {
     first_tried.clear();

@@ -7,6 +7,8 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "optinav/geo/raster.h"
+#include "optinav/maploc/frame_synth.h"
+#include "optinav/maploc/locator.h"
 #include "optinav/maploc/map_db.h"
 #include "optinav/util/testing.h"
 
@@ -62,5 +64,23 @@ class Naip2009MapTestOf : public ::testing::Test {
 };
 using Naip2009MapTest = Naip2009MapTestOf<features::FeatureType::kOrb>;
 using Naip2009XFeatMapTest = Naip2009MapTestOf<features::FeatureType::kXFeat>;
+
+// What locate is given for a perspective frame: altitude and attitude always, the prior position
+// and the heading when asked.
+inline Prior GivenPrior(const PerspectiveFrame& f, bool with_prior, bool with_heading) {
+  Prior p;
+  p.altitude_m = f.given_altitude_m;
+  p.roll_deg = f.given_roll_deg;
+  p.pitch_deg = f.given_pitch_deg;
+  if (with_prior) {
+    p.position = f.prior;
+    p.radius_m = f.prior_radius_m;
+  }
+  if (with_heading) {
+    p.heading_deg = f.given_heading_deg;
+    p.heading_sigma_deg = f.heading_sigma_deg;
+  }
+  return p;
+}
 
 }  // namespace optinav::maploc::testmaps

@@ -34,18 +34,10 @@ class XFeatNaip : public testmaps::Naip2009XFeatMapTest {
     for (const char* year : years) {
       const geo::GeoRaster raster = geo::GeoRaster::Open(testmaps::Naip(year));
       for (const PerspectiveFrame& f : MakePerspectiveFrames(raster, per_year, {}, seed)) {
-        Prior p;
-        p.altitude_m = f.given_altitude_m;
-        p.roll_deg = f.given_roll_deg;
-        p.pitch_deg = f.given_pitch_deg;
-        if (with_prior) {
-          p.position = f.prior;
-          p.radius_m = f.prior_radius_m;
-          p.heading_deg = f.given_heading_deg;
-          p.heading_sigma_deg = f.heading_sigma_deg;
-        }
-        const LocateResult r =
-            features_only ? locator.LocateByFeatures(f.image, p) : locator.Locate(f.image, p);
+        const Prior p = testmaps::GivenPrior(f, with_prior, with_prior);
+        const LocateResult r = features_only
+                                   ? locator.LocateByFeatures(f.image, p)
+                                   : locator.Locate(f.image, p, Locator::Order::kFeaturesFirst);
         ++o.frames;
         if (!r.localized) continue;
         ++o.localized;
