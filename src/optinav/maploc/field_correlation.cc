@@ -131,6 +131,7 @@ void RotateField(const cv::Mat& field, const cv::Matx23d& src_from_dst, double t
   // Sample positions are offset by kShift so that truncation is the floor (positions below
   // -kShift lie far outside anyway).
   constexpr float kShift = 4096.0f;
+  constexpr float kFar = 1e9f;  // beyond any field; keeps the int conversion defined
   auto tap = [&](int x, int y) -> cv::Vec2f {
     if (x < 0 || y < 0 || x >= w || y >= h) return {0, 0};
     return field.at<cv::Vec2f>(y, x);
@@ -145,7 +146,7 @@ void RotateField(const cv::Mat& field, const cv::Matx23d& src_from_dst, double t
       // From the row's start each time: no drift along long rows.
       const float qx = static_cast<float>(qx0) + dxu * static_cast<float>(u);
       const float qy = static_cast<float>(qy0) + dyu * static_cast<float>(u);
-      if (!(qx >= 0 && qy >= 0)) {
+      if (!(qx >= 0 && qy >= 0 && qx < kFar && qy < kFar)) {  // also NaN: outside
         o[u] = {0, 0};
         continue;
       }
