@@ -1219,6 +1219,21 @@ LocateResult Locator::CorrelationOn(const PreparedFrame& pf, const Prior& prior)
   // time (twice as coarse lost 5 of 20). With a prior the search stays at the coarse level (a
   // pre-search there gave 2 wrong fixes of 50 without a heading). `search_peaks` is the full
   // search, whose best and second-best place give the peak's distinctness.
+  // The best `places` distinct places of a search, each correlated again at the coarse level
+  // (directly: a few placements within `radius_px` map px) at its scale and at its heading +-
+  // half the search's spacing; best first.
+  auto refine_at_coarse = [&](const std::vector<OcPeak>& peaks, int places, double radius_px) {
+    std::vector<OcPeak> out;
+    for (const OcPeak& seed : distinct_places(peaks, places)) {
+      const double d = spacing / 2;
+      const std::vector<OcPeak> refined =
+          correlate(coarse, {seed.heading - d, seed.heading, seed.heading + d}, {seed.scale},
+                    {seed.x, seed.y}, radius_px);
+      if (!refined.empty()) out.push_back(refined[0]);
+    }
+    std::sort(out.begin(), out.end(), by_score);
+    return out;
+  };
   std::vector<OcPeak> search_peaks;
   std::vector<Candidate> candidates;
   size_t bi = 0, runner_up = 0;
@@ -1230,26 +1245,14 @@ LocateResult Locator::CorrelationOn(const PreparedFrame& pf, const Prior& prior)
     if (pre_search) {
       const double coarser_gsd = rung(fine_k + 6);
       search_peaks = correlate(level(coarser_gsd), headings, scales, c_px, radius_px);
-      for (const OcPeak& seed : distinct_places(search_peaks, 2 * im.options.oc_global_verify)) {
-        const std::vector<OcPeak> refined = correlate(
-            coarse, {seed.heading - spacing / 2, seed.heading, seed.heading + spacing / 2},
-            {seed.scale}, {seed.x, seed.y}, 1.5 * coarser_gsd / db.map_gsd_m);
-        if (!refined.empty()) coarse_peaks.push_back(refined[0]);
-      }
-      std::sort(coarse_peaks.begin(), coarse_peaks.end(), by_score);
+      coarse_peaks = refine_at_coarse(search_peaks, 2 * im.options.oc_global_verify,
+                                      1.5 * coarser_gsd / db.map_gsd_m);
     } else {
       coarse_peaks = search_peaks = correlate(coarse, headings, scales, c_px, radius_px);
       if (refine_headings) {
-        coarse_peaks.clear();
-        const int places = prior.heading_deg ? kRefinedPlacesWithHeading : kRefinedPlacesCircle;
-        for (const OcPeak& seed : distinct_places(search_peaks, places)) {
-          const double d = spacing / 2;
-          const std::vector<OcPeak> refined =
-              correlate(coarse, {seed.heading - d, seed.heading, seed.heading + d}, {seed.scale},
-                        {seed.x, seed.y}, 1.5 * coarse_gsd / db.map_gsd_m);
-          if (!refined.empty()) coarse_peaks.push_back(refined[0]);
-        }
-        std::sort(coarse_peaks.begin(), coarse_peaks.end(), by_score);
+        coarse_peaks = refine_at_coarse(
+            search_peaks, prior.heading_deg ? kRefinedPlacesWithHeading : kRefinedPlacesCircle,
+            1.5 * coarse_gsd / db.map_gsd_m);
       }
     }
     if (coarse_peaks.empty() || coarse_peaks[0].score <= 0) {
