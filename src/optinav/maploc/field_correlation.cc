@@ -130,28 +130,28 @@ void RotateField(const cv::Mat& field, const cv::Matx23d& src_from_dst, double t
   const int w = field.cols, h = field.rows;
   // Sample positions are offset by kShift so that truncation is the floor (positions below
   // -kShift lie far outside anyway).
-  constexpr float kShift = 4096.0f;
-  constexpr float kFar = 1e9f;  // beyond any field; keeps the int conversion defined
+  constexpr double kShift = 4096.0;
+  constexpr double kFar = 1e9;  // beyond any field; keeps the int conversion defined
   auto tap = [&](int x, int y) -> cv::Vec2f {
     if (x < 0 || y < 0 || x >= w || y >= h) return {0, 0};
     return field.at<cv::Vec2f>(y, x);
   };
-  const float dxu = static_cast<float>(src_from_dst(0, 0));
-  const float dyu = static_cast<float>(src_from_dst(1, 0));
+  // Positions in double: a float carries only ~5e-4 px at the shifted magnitude.
+  const double dxu = src_from_dst(0, 0), dyu = src_from_dst(1, 0);
   for (int v = 0; v < out->rows; ++v) {
     cv::Vec2f* o = out->ptr<cv::Vec2f>(v);
     const double qx0 = src_from_dst(0, 1) * v + src_from_dst(0, 2) + kShift;
     const double qy0 = src_from_dst(1, 1) * v + src_from_dst(1, 2) + kShift;
     for (int u = 0; u < out->cols; ++u) {
       // From the row's start each time: no drift along long rows.
-      const float qx = static_cast<float>(qx0) + dxu * static_cast<float>(u);
-      const float qy = static_cast<float>(qy0) + dyu * static_cast<float>(u);
+      const double qx = qx0 + dxu * u;
+      const double qy = qy0 + dyu * u;
       if (!(qx >= 0 && qy >= 0 && qx < kFar && qy < kFar)) {  // also NaN: outside
         o[u] = {0, 0};
         continue;
       }
       const int xs = static_cast<int>(qx), ys = static_cast<int>(qy);
-      const float ax = qx - static_cast<float>(xs), ay = qy - static_cast<float>(ys);
+      const float ax = static_cast<float>(qx - xs), ay = static_cast<float>(qy - ys);
       const int x0 = xs - static_cast<int>(kShift), y0 = ys - static_cast<int>(kShift);
       float s0, s1;
       if (static_cast<unsigned>(x0) < static_cast<unsigned>(w - 1) &&

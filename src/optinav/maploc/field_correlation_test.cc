@@ -1,5 +1,8 @@
 #include "optinav/maploc/field_correlation.h"
 
+#include <algorithm>
+#include <cmath>
+
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
@@ -81,6 +84,30 @@ TEST(FieldCorrelation, RotateFieldMatchesWarpAffine) {
       // OpenCV quantises the sample position to 1/32 px: allow that much of a unit gradient.
       EXPECT_LT(cv::norm(ours, expected, cv::NORM_INF), 0.07) << deg << " deg, scale " << k;
       EXPECT_LT(cv::norm(ours, expected, cv::NORM_L1) / size.area(), 0.02) << deg << " deg";
+      // And exactly against bilinear sampling in double precision (zero outside the field).
+      auto at = [&](int x, int y, int c) {
+        return x < 0 || y < 0 || x >= field.cols || y >= field.rows
+                   ? 0.0
+                   : static_cast<double>(field.at<cv::Vec2f>(y, x)[c]);
+      };
+      double worst = 0;
+      for (int y = 0; y < size.height; ++y)
+        for (int x = 0; x < size.width; ++x) {
+          const double qx = m(0, 0) * x + m(0, 1) * y + m(0, 2);
+          const double qy = m(1, 0) * x + m(1, 1) * y + m(1, 2);
+          const int x0 = static_cast<int>(std::floor(qx)), y0 = static_cast<int>(std::floor(qy));
+          const double ax = qx - x0, ay = qy - y0;
+          double v[2];
+          for (int c = 0; c < 2; ++c) {
+            v[c] = (at(x0, y0, c) * (1 - ax) + at(x0 + 1, y0, c) * ax) * (1 - ay) +
+                   (at(x0, y0 + 1, c) * (1 - ax) + at(x0 + 1, y0 + 1, c) * ax) * ay;
+          }
+          const cv::Vec2f o = ours.at<cv::Vec2f>(y, x);
+          worst =
+              std::max({worst, std::abs(o[0] - (v[0] * std::cos(2 * a) - v[1] * std::sin(2 * a))),
+                        std::abs(o[1] - (v[0] * std::sin(2 * a) + v[1] * std::cos(2 * a)))});
+        }
+      EXPECT_LT(worst, 1e-4) << deg << " deg, scale " << k;
     }
   }
   // Whole-pixel shifts are exact copies, zero where the source ends.
