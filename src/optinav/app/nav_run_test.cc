@@ -107,6 +107,33 @@ TEST_F(NavRunTest, MapFixesHoldTheFlight) {
   }
 }
 
+TEST_F(NavRunTest, AStartFromMapFixesAlignsBeforeItOutputs) {
+  // GNSS-free: a global search, a confirming fix, then the window starts level (the start's
+  // guess). No pose is output until its tilt is known (0.5 deg), then it restarts at a fix.
+  NavRunSettings st = Settings("aligned");
+  NavRunSettings off = Settings("unaligned");
+  st.max_frames = off.max_frames = 125;  // the first 25 s
+  off.nav.align_tilt_sigma_deg = 0;
+  const NavRunReport r = RunNav(st), o = RunNav(off);
+  ASSERT_TRUE(r.error && o.error);
+  ASSERT_FALSE(r.poses.empty() || o.poses.empty());
+  std::optional<int64_t> init;
+  for (const nav::FixLog& f : r.fixes)
+    if (!init && f.accepted) init = f.t_ns;
+  ASSERT_TRUE(init.has_value());
+  const double wait_s = (r.poses.front().t_ns - *init) * 1e-9;
+  std::printf(
+      "start from map fixes: first pose %.1f s after the first accepted fix (>= 1), max error "
+      "%.2f m (< 15), first %.2f m, RMSE %.2f m; without the alignment first pose at the fix, "
+      "max %.2f m, first %.2f m, RMSE %.2f m\n",
+      wait_s, r.error->max_m, r.errors_m.front(), r.error->rmse_m, o.error->max_m,
+      o.errors_m.front(), o.error->rmse_m);
+  EXPECT_EQ(o.poses.front().t_ns, *init);
+  EXPECT_GE(wait_s, 1.0);
+  EXPECT_LT(r.error->max_m, 15.0);
+  EXPECT_EQ(r.stats.resets, 0u);
+}
+
 TEST_F(NavRunTest, WrongFixesAreRejected) {
   // 10 % of the found fixes moved 300-1500 m away: none may enter, and the error stays close to
   // the clean run's. From a given start (the global search is the test above).

@@ -67,6 +67,11 @@ int RunNav(int argc, char** argv) {
       .add_option("--fix-yaw-sigma", st.nav.fix_yaw_sigma_deg,
                   "a map fix's heading enters with this sigma (deg; 0: not used)")
       ->capture_default_str();
+  command
+      .add_option("--align-tilt-sigma", st.nav.align_tilt_sigma_deg,
+                  "after a start from map fixes, no pose until the tilt is known to this (deg; "
+                  "0: poses from the first fix)")
+      ->capture_default_str();
   command.add_option("--window", st.nav.window_states, "states in the sliding window")
       ->capture_default_str();
   command.add_option("--max-frames", st.max_frames,

@@ -292,6 +292,8 @@ std::string NavOptions::Check() const {
     return "need 0 < min_prior_radius_m <= max_local_radius_m";
   if (!(init_confirm_m > 0) || !(init_velocity_sigma_m_s > 0) || !(init_tilt_sigma_deg > 0))
     return "initialisation sigmas must be > 0";
+  if (!(align_tilt_sigma_deg >= 0) || !(align_max_s > 0))
+    return "align_tilt_sigma_deg must be >= 0 and align_max_s > 0";
   if (start && !(start->position_sigma_m > 0 && start->heading_sigma_deg > 0 &&
                  start->velocity_sigma_m_s > 0))
     return "start sigmas must be > 0";
@@ -336,7 +338,15 @@ struct MapAidedNavigator::Impl {
     FixLog fix;
     std::string why;
     double velocity_sigma_m_s;
+    bool alignment = false;  // the end of the alignment, not a relocalisation
   };
+  // Alignment after a start from map fixes (NavOptions::align_tilt_sigma_deg): no pose is output
+  // until the tilt is known; then the window restarts at the next accepted fix.
+  bool aligning = false, aligned = false;
+  std::optional<int64_t> aligning_since_ns;
+  // After the alignment's restart, the fixes accepted so far: one fix's error (up to 2 sigma,
+  // 16 m on `bench nav`'s flight 2) is the restart's, so poses wait for two more.
+  std::optional<int> settle_fixes;
   std::optional<Restart> restart_fix;
   struct SearchHint {
     int64_t t_ns;
@@ -445,10 +455,15 @@ struct MapAidedNavigator::Impl {
   // `bias`, `baro_bias_m`: what a restarted window keeps of the previous one (zero at first).
   void Start(int64_t t_ns, const Eigen::Vector3d& position, const Eigen::Matrix3d& rotation,
              const Eigen::Vector3d& velocity, double position_sigma, double yaw_sigma_rad,
-             double velocity_sigma, const vio::ImuBias& bias = {}, double baro_bias_m = 0) {
+             double velocity_sigma, const vio::ImuBias& bias = {}, double baro_bias_m = 0,
+             double tilt_sigma_rad = -1) {
     backend_options.prior_position_sigma_m = position_sigma;
     backend_options.prior_yaw_sigma_rad = yaw_sigma_rad;
-    backend_options.prior_tilt_sigma_rad = options.init_tilt_sigma_deg * kDeg;
+    backend_options.prior_tilt_sigma_rad =
+        tilt_sigma_rad > 0 ? tilt_sigma_rad : options.init_tilt_sigma_deg * kDeg;
+    aligning = aligned = false;
+    aligning_since_ns.reset();
+    settle_fixes.reset();
     backend = std::make_unique<vio::SlidingWindowBackend>(backend_options, vio::RigExtrinsics{});
     vio::StateEstimate s;
     s.t_ns = t_ns;
@@ -557,6 +572,10 @@ struct MapAidedNavigator::Impl {
     }
     odometry_rejections = 0;
     Start(t_ns, p, rotation, velocity, log.sigma_m, 5 * kDeg, velocity_sigma);
+    if (options.align_tilt_sigma_deg > 0) {
+      aligning = true;
+      aligning_since_ns = t_ns;
+    }
     candidate.reset();
     search_hint.reset();
     fixes.push_back(log);
@@ -634,6 +653,7 @@ struct MapAidedNavigator::Impl {
   // A found fix enters the estimate (the caller adds its factors or restarts at it).
   void Accept(FixLog& log) {
     log.accepted = true;
+    if (settle_fixes) ++*settle_fixes;
     ++stats.fixes_accepted;
     if (log.injected) ++stats.outliers_accepted;
     last_accepted_fix_ns = log.t_ns;
@@ -724,7 +744,7 @@ struct MapAidedNavigator::Impl {
             options.init_velocity_sigma_m_s};
         relocalize = true;
         recent_fixes.clear();
-      } else if (after_gap && far && !gated) {
+      } else if (after_gap && far) {
         log.reason = "after a gap: far from the estimate, waiting for a confirming fix";
         gap_candidate = log;
       } else if (gated) {
@@ -745,6 +765,15 @@ struct MapAidedNavigator::Impl {
           gate_scale *= 2.0;
           rejecting_since_ns = t_ns;
         }
+      } else if (aligned) {
+        // The tilt is known now: restart at this fix, computed with it, dropping the fixes the
+        // window took while its tilt was still the start's guess (a level start on a vehicle
+        // tilted 2.5 deg put flight 3 of `bench nav` 22 m off for its first 10 s).
+        log.reason = "alignment done: restarting at the fix";
+        Accept(log);
+        const double v_sigma = std::sqrt(std::max(covariance(6, 6), covariance(7, 7)));
+        restart_fix = Restart{log, "alignment", std::clamp(3.0 * v_sigma, 0.5, 5.0), true};
+        relocalize = true;
       } else {
         Accept(log);
         refused_mostly(false);
@@ -811,7 +840,7 @@ struct MapAidedNavigator::Impl {
       odometry.Track(gray);
       have_frame = true;
       last_frame_ns = t_ns;
-      return initialized() ? std::optional<NavPose>(PoseOfNewest()) : std::nullopt;
+      return initialized() && !aligning ? std::optional<NavPose>(PoseOfNewest()) : std::nullopt;
     }
     const std::vector<vio::ImuMeasurement> measurements =
         vio::ImuMeasurementsBetween(imu, last_frame_ns, t_ns);
@@ -873,19 +902,38 @@ struct MapAidedNavigator::Impl {
     if (relocalize) {
       relocalize = false;
       const NavPose last = PoseOfNewest();
-      ++stats.resets;
+      const bool alignment = restart_fix && restart_fix->alignment;
+      if (!alignment) ++stats.resets;
       if (restart_fix && restart_fix->fix.t_ns == t_ns) {
         // Restart at the fix with the estimate's attitude, velocity and biases (the position
-        // drifted, the rest is likely sound; the velocity loosened).
+        // drifted, the rest is likely sound; the velocity loosened). At the end of the
+        // alignment the tilt keeps the sigma it reached, the yaw its own.
         const FixLog& fix = restart_fix->fix;
-        spdlog::warn("nav: {} at t={} s: restarting at the fix ({:.0f} m from the estimate)",
-                     restart_fix->why, t_ns * 1e-9, fix.innovation_m);
+        if (alignment)
+          spdlog::debug(
+              "nav: aligned at t={} s: restarting at the fix ({:.0f} m from the estimate)",
+              t_ns * 1e-9, fix.innovation_m);
+        else
+          spdlog::warn("nav: {} at t={} s: restarting at the fix ({:.0f} m from the estimate)",
+                       restart_fix->why, t_ns * 1e-9, fix.innovation_m);
         Eigen::Vector3d p = last.world_from_body.translation;
         p.head<2>() = fix.enu.head<2>();
-        const double yaw_sigma = std::max(5.0 * kDeg, last.yaw_sigma_deg * kDeg);
+        const double yaw_sigma = alignment ? std::max(0.5 * kDeg, last.yaw_sigma_deg * kDeg)
+                                           : std::max(5.0 * kDeg, last.yaw_sigma_deg * kDeg);
+        const double tilt_sigma =
+            alignment
+                ? std::max(0.2 * kDeg, std::sqrt(std::max(covariance(3, 3), covariance(4, 4))))
+                : -1.0;
         Start(t_ns, p, last.world_from_body.rotation.toRotationMatrix(), last.velocity, fix.sigma_m,
-              yaw_sigma, restart_fix->velocity_sigma_m_s, backend->Newest().bias, last.baro_bias_m);
+              yaw_sigma, restart_fix->velocity_sigma_m_s, backend->Newest().bias, last.baro_bias_m,
+              tilt_sigma);
         restart_fix.reset();
+        if (alignment) {
+          aligning = true;
+          aligning_since_ns = t_ns;
+          settle_fixes = 0;
+          return std::nullopt;
+        }
         return PoseOfNewest();
       }
       spdlog::warn(
@@ -899,6 +947,19 @@ struct MapAidedNavigator::Impl {
       backend.reset();
       return last;
     }
+    if (aligning && settle_fixes) {
+      if (*settle_fixes >= 2 || (t_ns - aligning_since_ns.value_or(t_ns)) * 1e-9 > 5.0)
+        aligning = false;
+    } else if (aligning) {
+      const double tilt_sigma = std::sqrt(std::max(covariance(3, 3), covariance(4, 4)));
+      const double aligning_s = (t_ns - aligning_since_ns.value_or(t_ns)) * 1e-9;
+      aligned = aligned || tilt_sigma < options.align_tilt_sigma_deg * kDeg ||
+                aligning_s > options.align_max_s;
+      // No fix accepted for a while after that: go on without the restart.
+      if (aligning_s > options.align_max_s + 5.0) aligning = false;
+      spdlog::debug("nav: aligning at t={} s: tilt sigma {:.2f} deg", t_ns * 1e-9,
+                    tilt_sigma / kDeg);
+    }
     const double sigma_h = std::sqrt(std::max(0.0, covariance(0, 0) + covariance(1, 1)));
     if (!estimate.world_from_body.translation.allFinite() || !estimate.velocity.allFinite() ||
         !(sigma_h < 5000.0)) {
@@ -910,6 +971,7 @@ struct MapAidedNavigator::Impl {
       ++stats.resets;
       return std::nullopt;
     }
+    if (aligning) return std::nullopt;  // no pose until the alignment's restart
     return PoseOfNewest();
   }
 };

@@ -73,9 +73,13 @@ struct NavOptions {
   double baro_bias_walk_m_per_sqrt_s = 0.05;
   // Visual odometry: homography error in pixels (1 sigma, per point; measured about 0.07 px on
   // the simulator's 640x480 frames at 450 m) and the floor of the displacement's sigma as a
-  // speed (times the frame interval).
+  // speed (times the frame interval). On `bench nav`'s flights 2 and 3 the displacement's
+  // velocity errors are 0.60-0.64 m/s per axis (std over 669-852 frame pairs, lag-1
+  // autocorrelation under 0.1) where 0.2 px claims 2.5 m/s; 0.1 px (1.2 m/s) lowered the
+  // clear, fog and 60 s gap errors on all three flights; 0.07 px pulled the altitude (RMSE
+  // 3.2-3.5 m on two flights) through the displacement's scale (docs/NAV.md).
   bool use_odometry = true;
-  double odometry_pixel_sigma = 0.2;
+  double odometry_pixel_sigma = 0.1;
   double odometry_min_velocity_sigma = 0.3;  // m/s
   // The homography is taken at the centre and near the four corners (12 % in). Their mean is the
   // displacement; each corner's difference from the centre (zero for a translation) carries the
@@ -110,8 +114,9 @@ struct NavOptions {
   // intervals) for a second one that puts the vehicle at the same offset from the estimate
   // (3 sigma + 20 m), from a search holding both the estimate and the candidate's place (the
   // correlation chooses between them); then the window restarts at the fix with the estimate's
-  // attitude and biases and a loosened velocity. A fix the gate refuses takes the
-  // relocalisation's path (several agreeing refusals) instead.
+  // attitude and biases and a loosened velocity. A far fix the gate refuses after a gap waits
+  // the same way (with the 0.1 px odometry the covariance after a gap is tighter, and the
+  // relocalisation's path, five agreeing refusals, took 4 s where the confirmation takes 1 s).
   double confirm_after_gap_s = 10.0;
   double max_local_radius_m = 1500;  // a prior radius beyond this: global search
   // A global search (no position to search around: take-off, after a relocalisation) costs 1-6 s
@@ -134,6 +139,14 @@ struct NavOptions {
   uint64_t outlier_seed = 1;
   double init_velocity_sigma_m_s = 30;
   double init_tilt_sigma_deg = 3;
+  // Alignment after a start from map fixes: the start's attitude is level (a vehicle tilted
+  // 2.5 deg puts a fix 22 m off at 500 m), so no pose is output until the window's tilt sigma is
+  // under this (or align_max_s has passed); then the window restarts at the next accepted fix
+  // with the attitude, velocity and biases it learnt, and poses follow after two more accepted
+  // fixes (one fix's error is the restart's). 0: off (poses from the first fix). On `bench
+  // nav`'s flight 3 (tilted 2.5 deg at its first fix) the first 10 s were 16-23 m off without it.
+  double align_tilt_sigma_deg = 0.5;
+  double align_max_s = 10.0;
   std::string Check() const;  // "" when valid, else names the field
 };
 
