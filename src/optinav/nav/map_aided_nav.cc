@@ -338,15 +338,24 @@ struct MapAidedNavigator::Impl {
     FixLog fix;
     std::string why;
     double velocity_sigma_m_s;
-    bool alignment = false;  // the end of the alignment, not a relocalisation
+    bool ends_alignment = false;  // the alignment's restart, not a relocalisation
   };
-  // Alignment after a start from map fixes (NavOptions::align_tilt_sigma_deg): no pose is output
-  // until the tilt is known; then the window restarts at the next accepted fix.
-  bool aligning = false, aligned = false;
-  std::optional<int64_t> aligning_since_ns;
-  // After the alignment's restart, the fixes accepted so far: one fix's error (up to 2 sigma,
-  // 16 m on `bench nav`'s flight 2) is the restart's, so poses wait for two more.
-  std::optional<int> settle_fixes;
+  // Alignment after a start from map fixes (NavOptions::align_tilt_sigma_deg), no pose output
+  // until it is over: the window learns its tilt, restarts at the next accepted fix, then waits
+  // for two more accepted fixes (one fix's error, up to 2 sigma, 16 m on `bench nav`'s flight 2,
+  // is the restart's).
+  enum class Alignment { kOff, kLearningTilt, kWaitingForFix, kSettling };
+  Alignment alignment = Alignment::kOff;
+  int64_t alignment_since_ns = 0;  // the start of the current phase
+  int settle_fixes = 0;            // accepted since the restart (kSettling)
+  void SetAlignment(Alignment a, int64_t t_ns) {
+    alignment = a;
+    alignment_since_ns = t_ns;
+    settle_fixes = 0;
+  }
+  double TiltSigma() const {  // of the newest state: the world rotation's east and north parts
+    return std::sqrt(std::max(covariance(3, 3), covariance(4, 4)));
+  }
   std::optional<Restart> restart_fix;
   struct SearchHint {
     int64_t t_ns;
@@ -461,9 +470,7 @@ struct MapAidedNavigator::Impl {
     backend_options.prior_yaw_sigma_rad = yaw_sigma_rad;
     backend_options.prior_tilt_sigma_rad =
         tilt_sigma_rad > 0 ? tilt_sigma_rad : options.init_tilt_sigma_deg * kDeg;
-    aligning = aligned = false;
-    aligning_since_ns.reset();
-    settle_fixes.reset();
+    alignment = Alignment::kOff;
     backend = std::make_unique<vio::SlidingWindowBackend>(backend_options, vio::RigExtrinsics{});
     vio::StateEstimate s;
     s.t_ns = t_ns;
@@ -572,10 +579,7 @@ struct MapAidedNavigator::Impl {
     }
     odometry_rejections = 0;
     Start(t_ns, p, rotation, velocity, log.sigma_m, 5 * kDeg, velocity_sigma);
-    if (options.align_tilt_sigma_deg > 0) {
-      aligning = true;
-      aligning_since_ns = t_ns;
-    }
+    if (options.align_tilt_sigma_deg > 0) SetAlignment(Alignment::kLearningTilt, t_ns);
     candidate.reset();
     search_hint.reset();
     fixes.push_back(log);
@@ -653,7 +657,7 @@ struct MapAidedNavigator::Impl {
   // A found fix enters the estimate (the caller adds its factors or restarts at it).
   void Accept(FixLog& log) {
     log.accepted = true;
-    if (settle_fixes) ++*settle_fixes;
+    if (alignment == Alignment::kSettling) ++settle_fixes;
     ++stats.fixes_accepted;
     if (log.injected) ++stats.outliers_accepted;
     last_accepted_fix_ns = log.t_ns;
@@ -765,7 +769,7 @@ struct MapAidedNavigator::Impl {
           gate_scale *= 2.0;
           rejecting_since_ns = t_ns;
         }
-      } else if (aligned) {
+      } else if (alignment == Alignment::kWaitingForFix) {
         // The tilt is known now: restart at this fix, computed with it, dropping the fixes the
         // window took while its tilt was still the start's guess (a level start on a vehicle
         // tilted 2.5 deg put flight 3 of `bench nav` 22 m off for its first 10 s).
@@ -840,7 +844,8 @@ struct MapAidedNavigator::Impl {
       odometry.Track(gray);
       have_frame = true;
       last_frame_ns = t_ns;
-      return initialized() && !aligning ? std::optional<NavPose>(PoseOfNewest()) : std::nullopt;
+      return initialized() && alignment == Alignment::kOff ? std::optional<NavPose>(PoseOfNewest())
+                                                           : std::nullopt;
     }
     const std::vector<vio::ImuMeasurement> measurements =
         vio::ImuMeasurementsBetween(imu, last_frame_ns, t_ns);
@@ -902,14 +907,14 @@ struct MapAidedNavigator::Impl {
     if (relocalize) {
       relocalize = false;
       const NavPose last = PoseOfNewest();
-      const bool alignment = restart_fix && restart_fix->alignment;
-      if (!alignment) ++stats.resets;
+      const bool ends_alignment = restart_fix && restart_fix->ends_alignment;
+      if (!ends_alignment) ++stats.resets;
       if (restart_fix && restart_fix->fix.t_ns == t_ns) {
         // Restart at the fix with the estimate's attitude, velocity and biases (the position
         // drifted, the rest is likely sound; the velocity loosened). At the end of the
         // alignment the tilt keeps the sigma it reached, the yaw its own.
         const FixLog& fix = restart_fix->fix;
-        if (alignment)
+        if (ends_alignment)
           spdlog::debug(
               "nav: aligned at t={} s: restarting at the fix ({:.0f} m from the estimate)",
               t_ns * 1e-9, fix.innovation_m);
@@ -918,20 +923,15 @@ struct MapAidedNavigator::Impl {
                        restart_fix->why, t_ns * 1e-9, fix.innovation_m);
         Eigen::Vector3d p = last.world_from_body.translation;
         p.head<2>() = fix.enu.head<2>();
-        const double yaw_sigma = alignment ? std::max(0.5 * kDeg, last.yaw_sigma_deg * kDeg)
-                                           : std::max(5.0 * kDeg, last.yaw_sigma_deg * kDeg);
-        const double tilt_sigma =
-            alignment
-                ? std::max(0.2 * kDeg, std::sqrt(std::max(covariance(3, 3), covariance(4, 4))))
-                : -1.0;
+        const double yaw_sigma = ends_alignment ? std::max(0.5 * kDeg, last.yaw_sigma_deg * kDeg)
+                                                : std::max(5.0 * kDeg, last.yaw_sigma_deg * kDeg);
+        const double tilt_sigma = ends_alignment ? std::max(0.2 * kDeg, TiltSigma()) : -1.0;
         Start(t_ns, p, last.world_from_body.rotation.toRotationMatrix(), last.velocity, fix.sigma_m,
               yaw_sigma, restart_fix->velocity_sigma_m_s, backend->Newest().bias, last.baro_bias_m,
               tilt_sigma);
         restart_fix.reset();
-        if (alignment) {
-          aligning = true;
-          aligning_since_ns = t_ns;
-          settle_fixes = 0;
+        if (ends_alignment) {
+          SetAlignment(Alignment::kSettling, t_ns);
           return std::nullopt;
         }
         return PoseOfNewest();
@@ -947,18 +947,17 @@ struct MapAidedNavigator::Impl {
       backend.reset();
       return last;
     }
-    if (aligning && settle_fixes) {
-      if (*settle_fixes >= 2 || (t_ns - aligning_since_ns.value_or(t_ns)) * 1e-9 > 5.0)
-        aligning = false;
-    } else if (aligning) {
-      const double tilt_sigma = std::sqrt(std::max(covariance(3, 3), covariance(4, 4)));
-      const double aligning_s = (t_ns - aligning_since_ns.value_or(t_ns)) * 1e-9;
-      aligned = aligned || tilt_sigma < options.align_tilt_sigma_deg * kDeg ||
-                aligning_s > options.align_max_s;
-      // No fix accepted for a while after that: go on without the restart.
-      if (aligning_s > options.align_max_s + 5.0) aligning = false;
+    // The alignment's phases; without an accepted fix for 5 s in the later ones, go on.
+    const double phase_s = (t_ns - alignment_since_ns) * 1e-9;
+    if (alignment == Alignment::kLearningTilt) {
       spdlog::debug("nav: aligning at t={} s: tilt sigma {:.2f} deg", t_ns * 1e-9,
-                    tilt_sigma / kDeg);
+                    TiltSigma() / kDeg);
+      if (TiltSigma() < options.align_tilt_sigma_deg * kDeg || phase_s > options.align_max_s)
+        SetAlignment(Alignment::kWaitingForFix, t_ns);
+    } else if (alignment == Alignment::kWaitingForFix && phase_s > 5.0) {
+      alignment = Alignment::kOff;
+    } else if (alignment == Alignment::kSettling && (settle_fixes >= 2 || phase_s > 5.0)) {
+      alignment = Alignment::kOff;
     }
     const double sigma_h = std::sqrt(std::max(0.0, covariance(0, 0) + covariance(1, 1)));
     if (!estimate.world_from_body.translation.allFinite() || !estimate.velocity.allFinite() ||
@@ -971,7 +970,7 @@ struct MapAidedNavigator::Impl {
       ++stats.resets;
       return std::nullopt;
     }
-    if (aligning) return std::nullopt;  // no pose until the alignment's restart
+    if (alignment != Alignment::kOff) return std::nullopt;  // no pose while aligning
     return PoseOfNewest();
   }
 };
