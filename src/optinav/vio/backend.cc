@@ -111,7 +111,7 @@ void SlidingWindowBackend::Reset() {
 void SlidingWindowBackend::Initialize(const StateEstimate& estimate,
                                       const std::vector<StereoObservation>& observations,
                                       double tilt_sigma_rad, double velocity_sigma_m_s,
-                                      double accel_bias_sigma) {
+                                      double accel_bias_sigma, double gyro_bias_sigma) {
   Reset();
   auto state = std::make_unique<State>();
   state->t_ns = estimate.t_ns;
@@ -121,13 +121,15 @@ void SlidingWindowBackend::Initialize(const StateEstimate& estimate,
   SetInitialPrior(states_.back().get(),
                   tilt_sigma_rad > 0 ? tilt_sigma_rad : options_.prior_tilt_sigma_rad,
                   velocity_sigma_m_s > 0 ? velocity_sigma_m_s : options_.prior_velocity_sigma_m_s,
-                  accel_bias_sigma > 0 ? accel_bias_sigma : options_.prior_accel_bias_sigma);
+                  accel_bias_sigma > 0 ? accel_bias_sigma : options_.prior_accel_bias_sigma,
+                  gyro_bias_sigma > 0 ? gyro_bias_sigma : options_.prior_gyro_bias_sigma);
   AddObservations(states_.back().get(), observations);
   TriangulateNew(states_.back().get());
 }
 
 void SlidingWindowBackend::SetInitialPrior(State* state, double tilt_sigma_rad,
-                                           double velocity_sigma_m_s, double accel_bias_sigma) {
+                                           double velocity_sigma_m_s, double accel_bias_sigma,
+                                           double gyro_bias_sigma) {
   prior_ = LinearPrior();
   LinearPrior::Block pose;
   pose.values = state->pose;
@@ -150,8 +152,7 @@ void SlidingWindowBackend::SetInitialPrior(State* state, double tilt_sigma_rad,
     sb.x0.assign(state->speed_bias, state->speed_bias + kSpeedBiasSize);
     prior_.blocks.push_back(sb);
     sigma.tail<9>() << Eigen::Vector3d::Constant(velocity_sigma_m_s),
-        Eigen::Vector3d::Constant(options_.prior_gyro_bias_sigma),
-        Eigen::Vector3d::Constant(accel_bias_sigma);
+        Eigen::Vector3d::Constant(gyro_bias_sigma), Eigen::Vector3d::Constant(accel_bias_sigma);
   }
   prior_.J = sigma.cwiseInverse().asDiagonal();
   prior_.r0 = Eigen::VectorXd::Zero(sigma.size());

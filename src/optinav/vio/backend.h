@@ -169,7 +169,7 @@ class SlidingWindowBackend {
   // prior_accel_bias_sigma.
   void Initialize(const StateEstimate& state, const std::vector<StereoObservation>& observations,
                   double tilt_sigma_rad = -1, double velocity_sigma_m_s = -1,
-                  double accel_bias_sigma = -1);
+                  double accel_bias_sigma = -1, double gyro_bias_sigma = -1);
   bool initialized() const { return !states_.empty(); }
   void Reset();
 
@@ -238,7 +238,7 @@ class SlidingWindowBackend {
   void MarginalizeOldest();
   void RelinearizeBiases();
   void SetInitialPrior(State* state, double tilt_sigma_rad, double velocity_sigma_m_s,
-                       double accel_bias_sigma);
+                       double accel_bias_sigma, double gyro_bias_sigma);
   State* AnchorFor(int64_t t_ns, ImuPreintegration* anchor_to_t) const;
   // The blocks of a timed factor anchored at `anchor`, or empty when it cannot be used yet.
   std::vector<double*> TimedFactorBlocks(const TimedFactor& factor, State* anchor) const;

@@ -35,6 +35,11 @@ std::string VioOptions::Check() const {
   if (!(init_window_s > 0)) return "init_window_s must be > 0";
   if (!(still_max_gyro_std > 0) || !(still_max_accel_std > 0))
     return "still_max_gyro_std and still_max_accel_std must be > 0";
+  if (!(static_gyro_bias_min_sigma > 0)) return "static_gyro_bias_min_sigma must be > 0";
+  if (!(static_gyro_bias_max_noise_ratio > 0))
+    return "static_gyro_bias_max_noise_ratio must be > 0";
+  if (!std::isfinite(static_gyro_bias_standard_errors))
+    return "static_gyro_bias_standard_errors must be finite";
   if (min_init_stereo_features < 3) return "min_init_stereo_features must be >= 3";
   if (!(motion_init_tilt_sigma_rad > 0) || !(motion_init_velocity_sigma_m_s > 0) ||
       !(motion_init_accel_bias_sigma > 0))
@@ -99,6 +104,8 @@ VioOptions LoadVioOptions(const std::string& path) {
         {"clahe_tiles", &f.clahe_tiles},
         {"clahe_below_std", &f.clahe_below_std},
         {"highpass_sigma_px", &f.highpass_sigma_px},
+        {"local_norm_sigma_px", &f.local_norm_sigma_px},
+        {"local_norm_floor", &f.local_norm_floor},
         {"median_filter_px", &f.median_filter_px},
         {"corner_block_px", &f.corner_block_px},
         {"keyframe_max_interval_s", &f.keyframe_max_interval_s},
@@ -155,6 +162,9 @@ VioOptions LoadVioOptions(const std::string& path) {
        {{"init_window_s", &o.init_window_s},
         {"still_max_gyro_std", &o.still_max_gyro_std},
         {"still_max_accel_std", &o.still_max_accel_std},
+        {"static_gyro_bias_standard_errors", &o.static_gyro_bias_standard_errors},
+        {"static_gyro_bias_min_sigma", &o.static_gyro_bias_min_sigma},
+        {"static_gyro_bias_max_noise_ratio", &o.static_gyro_bias_max_noise_ratio},
         {"min_init_stereo_features", &o.min_init_stereo_features},
         {"motion_init_tilt_sigma_rad", &o.motion_init_tilt_sigma_rad},
         {"motion_init_velocity_sigma_m_s", &o.motion_init_velocity_sigma_m_s},
@@ -372,7 +382,7 @@ bool VioEstimator::TryInitialize(const FramePacket& packet) {
   if (stereo < options_.min_init_stereo_features && !init_odometry_) return false;
   StateEstimate state;
   state.t_ns = t_ns;
-  double tilt_sigma = -1, velocity_sigma = -1, accel_bias_sigma = -1;
+  double tilt_sigma = -1, velocity_sigma = -1, accel_bias_sigma = -1, gyro_bias_sigma = -1;
   if (options_.mode == VioMode::kStereoImu) {
     const int64_t t0 = t_ns - static_cast<int64_t>(options_.init_window_s * 1e9);
     std::vector<const TimedImuSample*> window;
@@ -415,6 +425,17 @@ bool VioEstimator::TryInitialize(const FramePacket& packet) {
     if (still) {
       ResetMotionInit();
       state.bias.gyro = mg;
+      // std_g is the RMS of the 3-vector deviations of the 0.1 s block means: per axis
+      // std_g / sqrt(3). The sensor's white noise alone gives gyro_noise_density / sqrt(0.1 s).
+      const double block_noise = imu_noise_.gyro_noise_density / std::sqrt(0.1);
+      if (options_.static_gyro_bias_standard_errors > 0 &&
+          std_g / std::sqrt(3.0) <= options_.static_gyro_bias_max_noise_ratio * block_noise) {
+        const double standard_error = std_g / std::sqrt(3.0 * static_cast<double>(block_g.size()));
+        gyro_bias_sigma = std::clamp(
+            options_.static_gyro_bias_standard_errors * standard_error,
+            options_.static_gyro_bias_min_sigma,
+            std::max(options_.static_gyro_bias_min_sigma, options_.backend.prior_gyro_bias_sigma));
+      }
       state.bias.accel =
           ma - state.world_from_body.rotation.conjugate() * -options_.backend.gravity;
       last_init_kind_ = "static";
@@ -441,7 +462,8 @@ bool VioEstimator::TryInitialize(const FramePacket& packet) {
   // (The aligned start initialised the window already, its first frame at the last good position.)
   if (last_init_kind_ != "in-motion-aligned") {
     if (last_good_) state.world_from_body.translation = last_good_->world_from_body.translation;
-    backend_.Initialize(state, features.observations, tilt_sigma, velocity_sigma, accel_bias_sigma);
+    backend_.Initialize(state, features.observations, tilt_sigma, velocity_sigma, accel_bias_sigma,
+                        gyro_bias_sigma);
   }
   ++initializations_;
   if (lost_since_ns_) {

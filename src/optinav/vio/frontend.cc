@@ -36,6 +36,28 @@ cv::Mat HighPassFilter(const cv::Mat& grey, double sigma_px) {
   return out;
 }
 
+cv::Mat LocalContrastNormalise(const cv::Mat& grey, double sigma_px, double floor) {
+  OPTINAV_CHECK(grey.type() == CV_8UC1 && sigma_px > 0 && floor > 0);
+  cv::Mat f, mean, mean_sq;
+  grey.convertTo(f, CV_32F);
+  cv::GaussianBlur(f, mean, cv::Size(0, 0), sigma_px, sigma_px, cv::BORDER_REPLICATE);
+  cv::GaussianBlur(f.mul(f), mean_sq, cv::Size(0, 0), sigma_px, sigma_px, cv::BORDER_REPLICATE);
+  cv::Mat out(grey.size(), CV_8UC1);
+  const float fl = static_cast<float>(floor);
+  for (int y = 0; y < grey.rows; ++y) {
+    const float* pf = f.ptr<float>(y);
+    const float* pm = mean.ptr<float>(y);
+    const float* pq = mean_sq.ptr<float>(y);
+    uint8_t* po = out.ptr<uint8_t>(y);
+    for (int x = 0; x < grey.cols; ++x) {
+      const float sd = std::sqrt(std::max(pq[x] - pm[x] * pm[x], 0.0f));
+      const float v = 128.0f + 40.0f * (pf[x] - pm[x]) / (sd + fl);
+      po[x] = cv::saturate_cast<uint8_t>(v);
+    }
+  }
+  return out;
+}
+
 std::string FrontendOptions::Check() const {
   if (max_features < 8) return "max_features must be >= 8";
   if (grid_cols < 1 || grid_rows < 1) return "grid_cols and grid_rows must be >= 1";
@@ -53,6 +75,8 @@ std::string FrontendOptions::Check() const {
   if (!(clahe_clip_limit >= 0)) return "clahe_clip_limit must be >= 0";
   if (!(clahe_below_std >= 0)) return "clahe_below_std must be >= 0";
   if (!(highpass_sigma_px >= 0)) return "highpass_sigma_px must be >= 0";
+  if (!(local_norm_sigma_px >= 0)) return "local_norm_sigma_px must be >= 0";
+  if (!(local_norm_floor > 0)) return "local_norm_floor must be > 0";
   if (median_filter_px < 0 || median_filter_px > 7 ||
       (median_filter_px > 1 && median_filter_px % 2 == 0))
     return "median_filter_px must be 0, 1, 3, 5 or 7";
@@ -275,6 +299,12 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
   if (options_.highpass_sigma_px > 0) {
     left_eq = HighPassFilter(left_eq, options_.highpass_sigma_px);
     right_eq = HighPassFilter(right_eq, options_.highpass_sigma_px);
+  }
+  if (options_.local_norm_sigma_px > 0) {
+    left_eq =
+        LocalContrastNormalise(left_eq, options_.local_norm_sigma_px, options_.local_norm_floor);
+    right_eq =
+        LocalContrastNormalise(right_eq, options_.local_norm_sigma_px, options_.local_norm_floor);
   }
   std::vector<cv::Mat> left_pyramid, right_pyramid;
   const int pad = std::max(options_.klt_window_px, options_.stereo_window_px);

@@ -542,6 +542,8 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(file.frontend.clahe_below_std, d.frontend.clahe_below_std);
   EXPECT_EQ(file.frontend.min_corner_response, d.frontend.min_corner_response);
   EXPECT_EQ(file.frontend.highpass_sigma_px, d.frontend.highpass_sigma_px);
+  EXPECT_EQ(file.frontend.local_norm_sigma_px, d.frontend.local_norm_sigma_px);
+  EXPECT_EQ(file.frontend.local_norm_floor, d.frontend.local_norm_floor);
   EXPECT_EQ(file.frontend.median_filter_px, d.frontend.median_filter_px);
   EXPECT_EQ(file.frontend.corner_block_px, d.frontend.corner_block_px);
   EXPECT_EQ(file.backend.window_keyframes, d.backend.window_keyframes);
@@ -550,6 +552,9 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(file.backend.prior_accel_bias_sigma, d.backend.prior_accel_bias_sigma);
   EXPECT_EQ(file.still_max_gyro_std, d.still_max_gyro_std);
   EXPECT_EQ(file.still_max_accel_std, d.still_max_accel_std);
+  EXPECT_EQ(file.static_gyro_bias_standard_errors, d.static_gyro_bias_standard_errors);
+  EXPECT_EQ(file.static_gyro_bias_min_sigma, d.static_gyro_bias_min_sigma);
+  EXPECT_EQ(file.static_gyro_bias_max_noise_ratio, d.static_gyro_bias_max_noise_ratio);
   EXPECT_EQ(file.motion_init_tilt_sigma_rad, d.motion_init_tilt_sigma_rad);
   EXPECT_EQ(file.motion_init_accel_bias_sigma, d.motion_init_accel_bias_sigma);
   EXPECT_EQ(file.max_imu_gap_s, d.max_imu_gap_s);
