@@ -425,12 +425,13 @@ bool VioEstimator::TryInitialize(const FramePacket& packet) {
     if (still) {
       ResetMotionInit();
       state.bias.gyro = mg;
-      // std_g is the RMS of the 3-vector deviations of the 0.1 s block means: per axis
-      // std_g / sqrt(3). The sensor's white noise alone gives gyro_noise_density / sqrt(0.1 s).
-      const double block_noise = imu_noise_.gyro_noise_density / std::sqrt(0.1);
+      // std_g is the RMS of the 3-vector deviations of the block means: per axis std_g /
+      // sqrt(3), against gyro_noise_density / sqrt(block) from the sensor's white noise alone.
+      const double axis_spread = std_g / std::sqrt(3.0);
+      const double block_noise = imu_noise_.gyro_noise_density / std::sqrt(block_ns * 1e-9);
       if (options_.static_gyro_bias_standard_errors > 0 &&
-          std_g / std::sqrt(3.0) <= options_.static_gyro_bias_max_noise_ratio * block_noise) {
-        const double standard_error = std_g / std::sqrt(3.0 * static_cast<double>(block_g.size()));
+          axis_spread <= options_.static_gyro_bias_max_noise_ratio * block_noise) {
+        const double standard_error = axis_spread / std::sqrt(static_cast<double>(block_g.size()));
         gyro_bias_sigma = std::clamp(
             options_.static_gyro_bias_standard_errors * standard_error,
             options_.static_gyro_bias_min_sigma,

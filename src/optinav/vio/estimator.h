@@ -90,7 +90,7 @@ struct VioOptions {
   // (at least static_gyro_bias_min_sigma, at most backend.prior_gyro_bias_sigma; <= 0: the
   // backend's prior). With the backend's 0.01 rad/s the window let the vision pull the bias: on
   // the foggy car route (near points only) the yaw then drifted 0.08 deg/s, 9.9 m mean error
-  // against 2.0 m with the measured prior (docs/VIO.md, weather).
+  // against 2.5 m with the measured prior (docs/VIO.md, weather).
   // Only when the window is still to the sensor's own noise: its block means spread at most
   // this many times the white noise's (a parked car: 1.3). A vibrating or slightly moving
   // vehicle keeps the backend's prior (EuRoC V1_01's start: 10; with the measured prior there

@@ -77,7 +77,8 @@ struct FrontendOptions {
   // route in 100 % fog, KLT's displacement differs from the clear rendering's by a median 0.13
   // px (a 0.02 px per frame bias down the image) raw and 0.04 px normalised (sigma 4 px). Off:
   // over the whole route it did not lower the error (stereo 15.9 -> 15.4 m in fog, 2.2 -> 2.4 m
-  // clear, 50 -> 40 m in dust; stereo-imu in fog 2.0 -> 7.4 m: features in the faint far haze;
+  // clear, 50 -> 40 m in dust; stereo-imu in fog 9.9 -> 15.2 m, and 2.0 -> 7.4 m with a 1 mrad/s
+  // gyro-bias prior: features in the faint far haze;
   // docs/VIO.md, weather).
   double local_norm_sigma_px = 0.0;
   double local_norm_floor = 2.0;  // grey levels added to the local std (flat areas stay flat)
