@@ -68,6 +68,7 @@ std::string BackendOptions::Check() const {
   if (!(min_depth_m > 0) || !(max_depth_m > min_depth_m))
     return "need 0 < min_depth_m < max_depth_m";
   if (!(stereo_only_outlier_pixels >= 0)) return "stereo_only_outlier_pixels must be >= 0";
+  if (!(predicted_gate_pixels >= 0)) return "predicted_gate_pixels must be >= 0";
   if (max_iterations < 1) return "max_iterations must be >= 1";
   if (!(max_solver_time_s > 0)) return "max_solver_time_s must be > 0";
   if (!(initial_trust_region_radius > 0))
@@ -429,6 +430,7 @@ StateEstimate SlidingWindowBackend::AddFrame(int64_t t_ns, const ImuPreintegrati
   states_.push_back(std::move(state));
   State* added = states_.back().get();
   AddObservations(added, observations);
+  if (options_.use_imu && options_.predicted_gate_pixels > 0) GateOnPrediction(*added);
   TriangulateNew(added);
   if (keyframe || states_.size() < 3) {
     Optimize();
@@ -682,35 +684,61 @@ void SlidingWindowBackend::Optimize() {
   }
 }
 
+double SlidingWindowBackend::ReprojectionErrorPx(const State& state, const Landmark& landmark,
+                                                 const StereoObservation& obs) const {
+  const Eigen::Vector3d p_world(landmark.position[0], landmark.position[1], landmark.position[2]);
+  const Eigen::Vector3d p_body = state.WorldFromBody().Inverse() * p_world;
+  auto error_px = [&](const Rigid3d& cam_from_body, const Eigen::Vector2d& observed) {
+    const Eigen::Vector3d p = cam_from_body * p_body;
+    if (p.z() < options_.min_depth_m) return 1e9;
+    return rig_.focal_px * (p.head<2>() / p.z() - observed).norm();
+  };
+  double error = error_px(rig_.cam0_from_body, obs.left);
+  if (obs.right) error = std::max(error, error_px(rig_.cam1_from_body, *obs.right));
+  return error;
+}
+
+void SlidingWindowBackend::RejectLandmarks(const std::set<uint64_t>& ids) {
+  for (uint64_t id : ids) {
+    for (auto& state : states_) state->observations.erase(id);
+    landmarks_.erase(id);
+    rejected_tracks_.insert(id);
+  }
+}
+
+void SlidingWindowBackend::GateOnPrediction(const State& state) {
+  std::set<uint64_t> bad;
+  for (const auto& [id, obs] : state.observations) {
+    const Landmark& landmark = *landmarks_.at(id);
+    if (landmark.initialized &&
+        ReprojectionErrorPx(state, landmark, obs) > options_.predicted_gate_pixels)
+      bad.insert(id);
+  }
+  RejectLandmarks(bad);
+  stats_.num_gated = static_cast<int>(bad.size());
+}
+
 void SlidingWindowBackend::RemoveOutliers() {
   stats_.num_outliers_removed = 0;
   std::set<uint64_t> bad;
   const double limit = !options_.use_imu && options_.stereo_only_outlier_pixels > 0
                            ? options_.stereo_only_outlier_pixels
                            : options_.outlier_pixels;
+  std::vector<double> errors;
   for (const auto& state : states_) {
-    const Rigid3d body_from_world = state->WorldFromBody().Inverse();
     for (const auto& [id, obs] : state->observations) {
       const Landmark& landmark = *landmarks_.at(id);
       if (!landmark.initialized) continue;
-      const Eigen::Vector3d p_world(landmark.position[0], landmark.position[1],
-                                    landmark.position[2]);
-      const Eigen::Vector3d p_body = body_from_world * p_world;
-      auto error_px = [&](const Rigid3d& cam_from_body, const Eigen::Vector2d& observed) {
-        const Eigen::Vector3d p = cam_from_body * p_body;
-        if (p.z() < options_.min_depth_m) return 1e9;
-        return rig_.focal_px * (p.head<2>() / p.z() - observed).norm();
-      };
-      if (error_px(rig_.cam0_from_body, obs.left) > limit ||
-          (obs.right && error_px(rig_.cam1_from_body, *obs.right) > limit))
-        bad.insert(id);
+      const double e = ReprojectionErrorPx(*state, landmark, obs);
+      errors.push_back(e);
+      if (e > limit) bad.insert(id);
     }
   }
-  for (uint64_t id : bad) {
-    for (auto& state : states_) state->observations.erase(id);
-    landmarks_.erase(id);
-    rejected_tracks_.insert(id);
+  if (!errors.empty()) {
+    std::nth_element(errors.begin(), errors.begin() + errors.size() / 2, errors.end());
+    stats_.median_reprojection_px = errors[errors.size() / 2];
   }
+  RejectLandmarks(bad);
   stats_.num_outliers_removed = static_cast<int>(bad.size());
 }
 

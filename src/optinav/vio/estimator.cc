@@ -118,6 +118,7 @@ VioOptions LoadVioOptions(const std::string& path) {
         {"pixel_sigma", &b.pixel_sigma},
         {"huber_pixels", &b.huber_pixels},
         {"outlier_pixels", &b.outlier_pixels},
+        {"predicted_gate_pixels", &b.predicted_gate_pixels},
         {"stereo_only_outlier_pixels", &o.stereo_only_outlier_pixels},
         {"stereo_only_initial_trust_region_radius", &o.stereo_only_initial_trust_region_radius},
         {"stereo_only_function_tolerance", &o.stereo_only_function_tolerance},
@@ -714,10 +715,10 @@ std::optional<FrameEstimate> VioEstimator::RunBackend(FramePacket packet) {
       const BackendStats& bs = backend_.stats();
       spdlog::trace(
           "vio frame {:.3f}: kf {} tracked {} fb {} ransac {} detected {} stereo {} flow {:.1f} "
-          "constrained {} landmarks {} outliers {}",
+          "constrained {} landmarks {} outliers {} gated {} median {:.3f}",
           t_ns * 1e-9, features.keyframe ? 1 : 0, fs.tracked, fs.rejected_fb, fs.rejected_ransac,
           fs.detected, fs.stereo, fs.median_flow_px, bs.newest_constrained_landmarks,
-          bs.num_landmarks, bs.num_outliers_removed);
+          bs.num_landmarks, bs.num_outliers_removed, bs.num_gated, bs.median_reprojection_px);
     }
     // Divergence.
     const bool use_imu = options_.mode == VioMode::kStereoImu;

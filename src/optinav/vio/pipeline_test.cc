@@ -549,6 +549,8 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(file.backend.window_keyframes, d.backend.window_keyframes);
   EXPECT_EQ(file.backend.max_iterations, d.backend.max_iterations);
   EXPECT_EQ(file.backend.huber_pixels, d.backend.huber_pixels);
+  EXPECT_EQ(file.backend.outlier_pixels, d.backend.outlier_pixels);
+  EXPECT_EQ(file.backend.predicted_gate_pixels, d.backend.predicted_gate_pixels);
   EXPECT_EQ(file.backend.prior_accel_bias_sigma, d.backend.prior_accel_bias_sigma);
   EXPECT_EQ(file.still_max_gyro_std, d.still_max_gyro_std);
   EXPECT_EQ(file.still_max_accel_std, d.still_max_accel_std);
