@@ -130,11 +130,12 @@ TEST(Backend, PredictedGateRejectsDriftingParticles) {
   // The stereo-inertial window among drifting particles, without and with the gate on the
   // IMU-predicted pose (every frame a keyframe, as on the car route).
   const SyntheticScene scene;
-  auto frames = scene.Generate(10.0, 30.0, 0.3, true, 6);
+  const auto clean_frames = scene.Generate(10.0, 30.0, 0.3, true, 6);
+  auto frames = clean_frames;
   std::set<uint64_t> particle_ids;
   AddParticles(scene, &frames, &particle_ids);
   BackendOptions options;
-  const RunResult clean = RunBackend(scene, scene.Generate(10.0, 30.0, 0.3, true, 6), options, 1);
+  const RunResult clean = RunBackend(scene, clean_frames, options, 1);
   const RunResult ungated = RunBackend(scene, frames, options, 1);
   options.predicted_gate_pixels = 2.0;
   const RunResult gated = RunBackend(scene, frames, options, 1);
