@@ -684,10 +684,11 @@ void SlidingWindowBackend::Optimize() {
   }
 }
 
-double SlidingWindowBackend::ReprojectionErrorPx(const State& state, const Landmark& landmark,
+double SlidingWindowBackend::ReprojectionErrorPx(const Rigid3d& body_from_world,
+                                                 const Landmark& landmark,
                                                  const StereoObservation& obs) const {
   const Eigen::Vector3d p_world(landmark.position[0], landmark.position[1], landmark.position[2]);
-  const Eigen::Vector3d p_body = state.WorldFromBody().Inverse() * p_world;
+  const Eigen::Vector3d p_body = body_from_world * p_world;
   auto error_px = [&](const Rigid3d& cam_from_body, const Eigen::Vector2d& observed) {
     const Eigen::Vector3d p = cam_from_body * p_body;
     if (p.z() < options_.min_depth_m) return 1e9;
@@ -708,10 +709,11 @@ void SlidingWindowBackend::RejectLandmarks(const std::set<uint64_t>& ids) {
 
 void SlidingWindowBackend::GateOnPrediction(const State& state) {
   std::set<uint64_t> bad;
+  const Rigid3d body_from_world = state.WorldFromBody().Inverse();
   for (const auto& [id, obs] : state.observations) {
     const Landmark& landmark = *landmarks_.at(id);
     if (landmark.initialized &&
-        ReprojectionErrorPx(state, landmark, obs) > options_.predicted_gate_pixels)
+        ReprojectionErrorPx(body_from_world, landmark, obs) > options_.predicted_gate_pixels)
       bad.insert(id);
   }
   RejectLandmarks(bad);
@@ -726,10 +728,11 @@ void SlidingWindowBackend::RemoveOutliers() {
                            : options_.outlier_pixels;
   std::vector<double> errors;
   for (const auto& state : states_) {
+    const Rigid3d body_from_world = state->WorldFromBody().Inverse();
     for (const auto& [id, obs] : state->observations) {
       const Landmark& landmark = *landmarks_.at(id);
       if (!landmark.initialized) continue;
-      const double e = ReprojectionErrorPx(*state, landmark, obs);
+      const double e = ReprojectionErrorPx(body_from_world, landmark, obs);
       errors.push_back(e);
       if (e > limit) bad.insert(id);
     }

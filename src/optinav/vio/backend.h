@@ -249,9 +249,9 @@ class SlidingWindowBackend {
   // Before the solve: rejects the landmarks that the predicted pose of `state` (the newest)
   // reprojects farther than predicted_gate_pixels from its observations.
   void GateOnPrediction(const State& state);
-  // The larger of the left and right reprojection errors (pixels) of `landmark` (initialized) in
-  // `state` for `obs`.
-  double ReprojectionErrorPx(const State& state, const Landmark& landmark,
+  // The larger of the left and right reprojection errors (pixels) of `landmark` (initialized)
+  // for `obs`, seen from a state at the inverse of `body_from_world`.
+  double ReprojectionErrorPx(const Rigid3d& body_from_world, const Landmark& landmark,
                              const StereoObservation& obs) const;
   // Erases the landmarks with their observations; the frontend will stop tracking them.
   void RejectLandmarks(const std::set<uint64_t>& ids);
