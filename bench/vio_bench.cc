@@ -7,16 +7,27 @@
 //  - BM_GnssSmoother/N: SmoothGnssAlignment over N frames at 20 Hz (a 5 m/s circle) with a GNSS
 //    sample (3 m noise) every 4th frame: the one-off cost after a run with GNSS (N = 4000: the
 //    1 km flight of `optinav bench gnss`).
-// Data: ../shared/data (or $OPTINAV_SHARED_DATA).
+//  - BM_VioCar800/<weather>/<mode>/<frontend> (issue 19): the whole estimator, sequential, one
+//    OpenCV thread, on the first 15 s (300 stereo frames, 800x600: the weather document's camera)
+//    of the simulated urban car route (seed 1, as `bench weather`), rendered once into a temporary
+//    folder before timing. Weather none / fog:100 / dust:100; mode stereo (the document's) or
+//    stereo-imu; frontend "now" (the defaults) or "filed" (as when issue 19 was filed: no
+//    low-contrast CLAHE), side by side in the same run. Target: total per frame median <= 20 ms,
+//    p95 <= 50 ms on one core (run under `taskset -c 0`).
+// Data: ../shared/data (or $OPTINAV_SHARED_DATA); the car frames are generated.
 #include <cstdlib>
 #include <filesystem>
 #include <map>
 #include <random>
 
 #include <benchmark/benchmark.h>
+#include <opencv2/core/utility.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <unistd.h>
 
 #include "optinav/io/euroc_dataset.h"
+#include "optinav/sim/simulation.h"
+#include "optinav/sim/weather.h"
 #include "optinav/vio/estimator.h"
 #include "optinav/vio/gnss_smoother.h"
 #include "optinav/vio/internal/frontend.h"
@@ -29,48 +40,82 @@ using namespace optinav;
 struct Clip {
   io::EurocDataset ds;
   camera::StereoRig rig;
+  vio::ImuNoise noise;  // from imu0/sensor.yaml
   std::vector<vio::TimedImuSample> imu;
   std::vector<int64_t> t_ns;
   std::vector<cv::Mat> left, right;
 };
 
+// Every stereo pair of a EuRoC-layout folder, decoded, with the IMU samples.
+Clip ReadClip(const fs::path& dir) {
+  Clip c;
+  io::EurocOpenOptions open;
+  open.drop_missing_images = true;
+  c.ds = io::OpenEurocDataset(dir.string(), open);
+  c.rig = io::ToStereoRig(c.ds.cam0->calibration, c.ds.cam1->calibration);
+  Eigen::Quaterniond body_from_imu = Eigen::Quaterniond::Identity();
+  if (c.ds.imu_calibration) {
+    const io::ImuCalibration& k = *c.ds.imu_calibration;
+    c.noise.gyro_noise_density = k.gyroscope_noise_density;
+    c.noise.accel_noise_density = k.accelerometer_noise_density;
+    c.noise.gyro_random_walk = k.gyroscope_random_walk;
+    c.noise.accel_random_walk = k.accelerometer_random_walk;
+    body_from_imu = k.body_from_imu.rotation;
+  }
+  for (const io::ImuSample& s : io::ReadImuCsv(c.ds.imu_csv))
+    c.imu.push_back({s.t_ns, body_from_imu * s.gyro_rad_s, body_from_imu * s.accel_m_s2});
+  std::map<int64_t, std::string> rights;
+  for (const auto& r : c.ds.cam1->images) rights[r.t_ns] = r.path;
+  for (const auto& l : c.ds.cam0->images) {
+    if (!rights.count(l.t_ns)) continue;
+    c.t_ns.push_back(l.t_ns);
+    c.left.push_back(cv::imread(l.path, cv::IMREAD_GRAYSCALE));
+    c.right.push_back(cv::imread(rights[l.t_ns], cv::IMREAD_GRAYSCALE));
+  }
+  return c;
+}
+
 const Clip& LoadClip() {
   static const Clip clip = [] {
     const char* env = std::getenv("OPTINAV_SHARED_DATA");
-    const fs::path dir =
-        (env ? fs::path(env) : fs::path(OPTINAV_SHARED_DATA_DEFAULT)) / "euroc" / "V1_01_micro";
-    Clip c;
-    io::EurocOpenOptions open;
-    open.drop_missing_images = true;
-    c.ds = io::OpenEurocDataset(dir.string(), open);
-    c.rig = io::ToStereoRig(c.ds.cam0->calibration, c.ds.cam1->calibration);
-    for (const io::ImuSample& s : io::ReadImuCsv(c.ds.imu_csv))
-      c.imu.push_back({s.t_ns, s.gyro_rad_s, s.accel_m_s2});
-    std::map<int64_t, std::string> rights;
-    for (const auto& r : c.ds.cam1->images) rights[r.t_ns] = r.path;
-    for (const auto& l : c.ds.cam0->images) {
-      if (!rights.count(l.t_ns)) continue;
-      c.t_ns.push_back(l.t_ns);
-      c.left.push_back(cv::imread(l.path, cv::IMREAD_GRAYSCALE));
-      c.right.push_back(cv::imread(rights[l.t_ns], cv::IMREAD_GRAYSCALE));
-    }
-    return c;
+    return ReadClip((env ? fs::path(env) : fs::path(OPTINAV_SHARED_DATA_DEFAULT)) / "euroc" /
+                    "V1_01_micro");
   }();
   return clip;
 }
 
-void BM_VioEurocMicro(benchmark::State& state) {
-  const Clip& c = LoadClip();
+// The first 15 s of the urban car route at 800x600 in `weather`, rendered once per process.
+const Clip& CarClip(const std::string& weather) {
+  static std::map<std::string, Clip> clips;
+  auto it = clips.find(weather);
+  if (it != clips.end()) return it->second;
+  sim::SimulationOptions o;
+  o.route = "car";
+  o.duration_s = 15.0;
+  o.seed = 1;
+  o.scale = 1.0;
+  o.weather = sim::ParseWeather(weather);
+  const fs::path dir =
+      fs::temp_directory_path() / ("optinav_vio_bench_car_" + std::to_string(::getpid()));
+  o.out_dir = dir.string();
+  o.force = true;
+  sim::RunSimulation(o);
+  Clip c = ReadClip(dir);
+  fs::remove_all(dir);
+  return clips.emplace(weather, std::move(c)).first->second;
+}
+
+// The whole estimator over `c`'s frames (sequential), per-stage median and p95 per frame as
+// counters (of the last iteration).
+void RunEstimator(benchmark::State& state, const Clip& c, const vio::VioOptions& options) {
   for (auto _ : state) {
-    vio::VioEstimator e(c.rig, c.ds.cam0->calibration.body_from_cam, vio::ImuNoise{},
-                        vio::VioOptions{});
+    vio::VioEstimator e(c.rig, c.ds.cam0->calibration.body_from_cam, c.noise, options);
     size_t k = 0;
     for (size_t i = 0; i < c.t_ns.size(); ++i) {
       for (; k < c.imu.size() && c.imu[k].t_ns <= c.t_ns[i] + 20'000'000; ++k) e.AddImu(c.imu[k]);
       benchmark::DoNotOptimize(e.ProcessFrame(c.t_ns[i], c.left[i], c.right[i]));
     }
     for (const std::string& stage : e.timing().Stages()) {
-      // Per-frame statistics of the last iteration.
       const TimingSummary s = e.timing().Summary(stage);
       state.counters[stage + "_median_ms"] = s.median_s * 1e3;
       state.counters[stage + "_p95_ms"] = s.p95_s * 1e3;
@@ -78,7 +123,35 @@ void BM_VioEurocMicro(benchmark::State& state) {
   }
   state.counters["frames"] = static_cast<double>(c.t_ns.size());
 }
+
+void BM_VioEurocMicro(benchmark::State& state) {
+  RunEstimator(state, LoadClip(), vio::VioOptions{});
+}
 BENCHMARK(BM_VioEurocMicro)->Unit(benchmark::kMillisecond)->Iterations(3);
+
+void BM_VioCar800(benchmark::State& state, const std::string& weather, vio::VioMode mode,
+                  bool filed_frontend) {
+  const Clip& c = CarClip(weather);  // rendered on every core
+  cv::setNumThreads(1);
+  vio::VioOptions options;
+  options.mode = mode;
+  if (filed_frontend) options.frontend.clahe_clip_limit = 0;  // the frontend before 2026-11-25
+  RunEstimator(state, c, options);
+}
+#define OPTINAV_CAR_BENCH(name, weather, mode)                       \
+  BENCHMARK_CAPTURE(BM_VioCar800, name##_now, weather, mode, false)  \
+      ->Unit(benchmark::kMillisecond)                                \
+      ->Iterations(1);                                               \
+  BENCHMARK_CAPTURE(BM_VioCar800, name##_filed, weather, mode, true) \
+      ->Unit(benchmark::kMillisecond)                                \
+      ->Iterations(1)
+OPTINAV_CAR_BENCH(clear_stereo, "none", vio::VioMode::kStereo);
+OPTINAV_CAR_BENCH(fog100_stereo, "fog:100", vio::VioMode::kStereo);
+OPTINAV_CAR_BENCH(dust100_stereo, "dust:100", vio::VioMode::kStereo);
+OPTINAV_CAR_BENCH(clear_stereo_imu, "none", vio::VioMode::kStereoImu);
+OPTINAV_CAR_BENCH(fog100_stereo_imu, "fog:100", vio::VioMode::kStereoImu);
+OPTINAV_CAR_BENCH(dust100_stereo_imu, "dust:100", vio::VioMode::kStereoImu);
+#undef OPTINAV_CAR_BENCH
 
 void BM_FrontendOnly(benchmark::State& state) {
   const Clip& c = LoadClip();

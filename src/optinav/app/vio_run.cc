@@ -343,7 +343,10 @@ nlohmann::json VioStatsJson(const VioRunReport& report) {
                      {"new_keyframe_s", l.t_new_ns * 1e-9},
                      {"inliers", l.inliers},
                      {"relative_translation_m", l.old_body_from_new_body.translation.norm()},
-                     {"correction_m", l.correction_m}});
+                     {"correction_m", l.correction_m},
+                     {"residual_m", l.residual_m},
+                     {"sigma_m", l.sigma_m},
+                     {"sigma_rad", l.sigma_rad}});
   j["loops"] = loops;
   if (!r.gnss_stats.received) return j;
   const vio::GnssFusionStats& g = r.gnss_stats;

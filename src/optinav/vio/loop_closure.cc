@@ -2,7 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
+#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
 #include <ceres/ceres.h>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
@@ -35,6 +38,9 @@ std::string LoopClosureOptions::Check() const {
       !(odometry_sigma_rad_per_m >= 0) || !(odometry_min_sigma_rad > 0) || !(loop_sigma_m > 0) ||
       !(loop_sigma_rad > 0))
     return "loop_closure sigmas must be > 0 (per-metre growth >= 0)";
+  if (!(max_loop_residual_m >= 0)) return "loop_closure.max_loop_residual_m must be >= 0";
+  if (!(point_sigma_px >= 0)) return "loop_closure.point_sigma_px must be >= 0";
+  if (!(max_loop_distance_m >= 0)) return "loop_closure.max_loop_distance_m must be >= 0";
   return "";
 }
 
@@ -65,15 +71,108 @@ struct RelativePoseResidual {
   double w_t, w_r;
 };
 
+// Yaw of a rotation about the world's z axis (Z-Y-X Euler angles): yaw(Rz(a) * R) = a + yaw(R).
+double Yaw(const Eigen::Quaterniond& q) {
+  const Eigen::Matrix3d r = q.toRotationMatrix();
+  return std::atan2(r(1, 0), r(0, 0));
+}
+
+double WrapAngle(double a) { return std::remainder(a, 2 * M_PI); }
+
+// Relative pose i -> j of the gravity-aligned (4-DoF) pose graph. Keyframe k's pose is
+// (Rz(yaw_k) * base_k, t_k) with base_k its rotation before the solve (roll and pitch fixed).
+// Residual: the translation in the frame of i, then the yaw of j against that of i composed with
+// the measured rotation, each over its sigma. `yaw_offset` = yaw(base_j) - yaw(base_i * R_ij).
+struct YawPositionResidual {
+  YawPositionResidual(const Eigen::Quaterniond& base_i, const Eigen::Vector3d& i_t_j,
+                      double yaw_offset, double sigma_m, double sigma_rad)
+      : base_i(base_i), t(i_t_j), yaw_offset(yaw_offset), w_t(1 / sigma_m), w_r(1 / sigma_rad) {}
+
+  template <typename T>
+  bool operator()(const T* yaw_i, const T* ti_p, const T* yaw_j, const T* tj_p, T* r) const {
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> ti(ti_p), tj(tj_p);
+    const Eigen::Matrix<T, 3, 1> d = tj - ti;
+    const T c = cos(yaw_i[0]), s = sin(yaw_i[0]);
+    // Rz(yaw_i)^T d, then base_i^T.
+    const Eigen::Matrix<T, 3, 1> unyawed(c * d.x() + s * d.y(), -s * d.x() + c * d.y(), d.z());
+    const Eigen::Matrix<T, 3, 1> t_est = base_i.conjugate().cast<T>() * unyawed;
+    for (int k = 0; k < 3; ++k) r[k] = (t_est[k] - T(t[k])) * T(w_t);
+    T e = yaw_j[0] - yaw_i[0] + T(yaw_offset);
+    // Wrap into (-pi, pi]: the solve moves yaws by far less than pi per step.
+    while (e > T(M_PI)) e -= T(2 * M_PI);
+    while (e <= T(-M_PI)) e += T(2 * M_PI);
+    r[3] = e * T(w_r);
+    return true;
+  }
+
+  Eigen::Quaterniond base_i;
+  Eigen::Vector3d t;
+  double yaw_offset, w_t, w_r;
+};
+
 double AngleBetween(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::atan2(a.cross(b).norm(), a.dot(b));
 }
 
 }  // namespace
 
+void PnpSigmas(const Rigid3d& cur_cam_from_cand_cam, const std::vector<cv::Point3f>& object,
+               const std::vector<cv::Point2f>& image, double focal_px, double baseline_m,
+               double sigma_px, double* sigma_m, double* sigma_rad) {
+  // PnP minimises the unweighted image residuals, so its covariance is the sandwich
+  // (J^T J)^-1 (J^T C J) (J^T J)^-1 with C each residual's covariance; parameters (dtheta, dt).
+  Eigen::Matrix<double, 6, 6> jtj = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::Matrix<double, 6, 6> jtcj = Eigen::Matrix<double, 6, 6>::Zero();
+  const Eigen::Matrix3d R = cur_cam_from_cand_cam.rotation.toRotationMatrix();
+  const double s_n = sigma_px / focal_px;  // in normalized coordinates
+  for (size_t k = 0; k < object.size(); ++k) {
+    const Eigen::Vector3d p(object[k].x, object[k].y, object[k].z);
+    const Eigen::Vector3d q = cur_cam_from_cand_cam * p;
+    if (q.z() <= 0 || p.z() <= 0) continue;
+    Eigen::Matrix<double, 2, 3> jq;
+    jq << 1 / q.z(), 0, -q.x() / (q.z() * q.z()), 0, 1 / q.z(), -q.y() / (q.z() * q.z());
+    // The stereo point's covariance: along the left camera's ray (depth) and across it.
+    const double s_depth = p.z() * p.z() * sigma_px / (focal_px * baseline_m);
+    const double s_lateral = p.z() * s_n;
+    const Eigen::Vector3d ray = p.normalized();
+    const Eigen::Matrix3d cov_p =
+        s_lateral * s_lateral * Eigen::Matrix3d::Identity() +
+        (s_depth * s_depth - s_lateral * s_lateral) * ray * ray.transpose();
+    const Eigen::Matrix2d cov_r =
+        jq * R * cov_p * R.transpose() * jq.transpose() + s_n * s_n * Eigen::Matrix2d::Identity();
+    Eigen::Matrix<double, 3, 6> dq;  // q = exp(dtheta) q + dt
+    dq.leftCols<3>() = -Hat(q);
+    dq.rightCols<3>() = Eigen::Matrix3d::Identity();
+    const Eigen::Matrix<double, 2, 6> j = jq * dq;
+    jtj += j.transpose() * j;
+    jtcj += j.transpose() * cov_r * j;
+  }
+  const Eigen::FullPivLU<Eigen::Matrix<double, 6, 6>> lu(jtj);
+  if (!lu.isInvertible()) {
+    *sigma_m = *sigma_rad = std::numeric_limits<double>::infinity();
+    return;
+  }
+  const Eigen::Matrix<double, 6, 6> jtj_inv = lu.inverse();
+  const Eigen::Matrix<double, 6, 6> cov = jtj_inv * jtcj * jtj_inv;
+  // The loop edge is the inverse transform, whose translation -R^T t moves by
+  // -R^T (dt - [dtheta]x t) = -R^T (dt + [t]x dtheta); R^T does not change the sizes.
+  Eigen::Matrix<double, 3, 6> a;
+  a.leftCols<3>() = Hat(cur_cam_from_cand_cam.translation);
+  a.rightCols<3>() = Eigen::Matrix3d::Identity();
+  const Eigen::Matrix3d cov_t = a * cov * a.transpose();
+  const Eigen::Matrix3d cov_r = cov.topLeftCorner<3, 3>();
+  *sigma_m = std::sqrt(std::max(
+      0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov_t).eigenvalues().maxCoeff()));
+  *sigma_rad = std::sqrt(std::max(
+      0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov_r).eigenvalues().maxCoeff()));
+}
+
 LoopCloser::LoopCloser(const camera::StereoRig& rig, const Rigid3d& body_from_cam0,
-                       const LoopClosureOptions& options)
-    : rig_(rig), body_from_cam0_(body_from_cam0), options_(options) {
+                       const LoopClosureOptions& options, bool gravity_aligned)
+    : rig_(rig),
+      body_from_cam0_(body_from_cam0),
+      options_(options),
+      gravity_aligned_(gravity_aligned) {
   if (const std::string e = options.Check(); !e.empty()) throw Error(e, {.field = "loop_closure"});
   orb_ = cv::ORB::create(options.orb_features);
   essential_ = rig.Essential();
@@ -125,7 +224,7 @@ LoopCloser::Keyframe LoopCloser::Describe(const StateEstimate& state, const cv::
 }
 
 bool LoopCloser::Match(const Keyframe& candidate, const Keyframe& current, const Rigid3d& predicted,
-                       double radius_m, Rigid3d* cand_body_from_cur_body, int* inliers) const {
+                       double radius_m, LoopEdge* edge) const {
   const std::vector<cv::DMatch> matches =
       features::MatchWithRatio(candidate.point_descriptors, current.descriptors, cv::NORM_HAMMING,
                                static_cast<float>(options_.match_ratio));
@@ -181,11 +280,20 @@ bool LoopCloser::Match(const Keyframe& candidate, const Keyframe& current, const
       "odometry (radius {:.2f} m)",
       candidate.t_ns * 1e-9, n, diff.translation.norm(),
       Eigen::AngleAxisd(diff.rotation).angle() * 180 / M_PI, radius_m);
+  if (options_.max_loop_distance_m > 0 &&
+      measured.translation.norm() > options_.max_loop_distance_m)
+    return false;
   if (diff.translation.norm() > radius_m ||
       Eigen::AngleAxisd(diff.rotation).angle() > options_.max_view_angle_deg * M_PI / 180)
     return false;
-  *cand_body_from_cur_body = measured;
-  *inliers = n;
+  edge->old_body_from_new_body = measured;
+  edge->inliers = n;
+  if (options_.point_sigma_px > 0) {
+    PnpSigmas(cur_cam_from_cand_cam, obj_in, img_in, rig_.left.fx, rig_.Baseline(),
+              options_.point_sigma_px, &edge->sigma_m, &edge->sigma_rad);
+    spdlog::debug("vio: loop candidate {:.3f} s: PnP sigmas {:.3f} m, {:.4f} rad",
+                  candidate.t_ns * 1e-9, edge->sigma_m, edge->sigma_rad);
+  }
   return true;
 }
 
@@ -242,30 +350,45 @@ bool LoopCloser::AddKeyframe(const StateEstimate& state, const cv::Mat& left,
                         options_.loop_consistency_m + options_.search_radius_fraction * chained_m);
     }
     const Rigid3d predicted = (c.correction * c.odometry).Inverse() * cur_pose;
-    Rigid3d measured;
-    int inliers = 0;
-    if (!Match(c, current, predicted, radius, &measured, &inliers)) continue;
     LoopEdge edge;
+    if (!Match(c, current, predicted, radius, &edge)) continue;
     edge.t_old_ns = c.t_ns;
     edge.t_new_ns = current.t_ns;
-    edge.old_body_from_new_body = measured;
-    edge.inliers = inliers;
+    const int inliers = edge.inliers;
+    std::vector<Rigid3d> corrections;  // to undo a rejected loop
+    corrections.reserve(keyframes_.size() - track_first_);
+    for (size_t k = track_first_; k < keyframes_.size(); ++k)
+      corrections.push_back(keyframes_[k].correction);
     loops_.push_back(edge);
     loop_indices_.emplace_back(j, cur);
     Optimize();
+    const double residual_m = LoopResidualM(loops_.size() - 1);
+    if (options_.max_loop_residual_m > 0 && residual_m > options_.max_loop_residual_m) {
+      spdlog::debug(
+          "vio: loop candidate {:.3f} s rejected after the solve: it disagrees with the graph by "
+          "{:.2f} m",
+          c.t_ns * 1e-9, residual_m);
+      loops_.pop_back();
+      loop_indices_.pop_back();
+      for (size_t k = track_first_; k < keyframes_.size(); ++k)
+        keyframes_[k].correction = corrections[k - track_first_];
+      continue;
+    }
     const Keyframe& now = keyframes_[cur];
     loops_.back().correction_m =
         ((now.correction * now.odometry).translation - cur_pose.translation).norm();
+    loops_.back().residual_m = residual_m;
     spdlog::info(
         "vio: loop closed at {:.3f} s with the keyframe of {:.3f} s ({} inliers, {:.2f} m "
-        "correction)",
-        current.t_ns * 1e-9, c.t_ns * 1e-9, inliers, loops_.back().correction_m);
+        "correction, {:.3f} m residual)",
+        current.t_ns * 1e-9, c.t_ns * 1e-9, inliers, loops_.back().correction_m, residual_m);
     return true;
   }
   return false;
 }
 
 void LoopCloser::Optimize() {
+  if (gravity_aligned_) return OptimizeYawAndPosition();
   const size_t n = keyframes_.size() - track_first_;
   std::vector<std::array<double, 4>> q(n);  // x y z w (Eigen's storage)
   std::vector<std::array<double, 3>> t(n);
@@ -298,8 +421,9 @@ void LoopCloser::Optimize() {
   for (size_t e = 0; e < loops_.size(); ++e) {
     const auto [i, j] = loop_indices_[e];
     if (i < track_first_) continue;
-    add(i - track_first_, j - track_first_, loops_[e].old_body_from_new_body, options_.loop_sigma_m,
-        options_.loop_sigma_rad, new ceres::CauchyLoss(1.0));
+    add(i - track_first_, j - track_first_, loops_[e].old_body_from_new_body,
+        std::max(options_.loop_sigma_m, loops_[e].sigma_m),
+        std::max(options_.loop_sigma_rad, loops_[e].sigma_rad), new ceres::CauchyLoss(1.0));
   }
   for (size_t k = 0; k < n; ++k) problem.SetManifold(q[k].data(), &manifold);
   problem.SetParameterBlockConstant(q[0].data());
@@ -316,6 +440,65 @@ void LoopCloser::Optimize() {
                        Eigen::Vector3d(t[k][0], t[k][1], t[k][2]));
     kf.correction = pose * kf.odometry.Inverse();
   }
+}
+
+void LoopCloser::OptimizeYawAndPosition() {
+  const size_t n = keyframes_.size() - track_first_;
+  std::vector<Eigen::Quaterniond> base(n);
+  std::vector<double> yaw(n, 0.0);
+  std::vector<std::array<double, 3>> t(n);
+  for (size_t k = 0; k < n; ++k) {
+    const Keyframe& kf = keyframes_[track_first_ + k];
+    const Rigid3d pose = kf.correction * kf.odometry;
+    base[k] = pose.rotation.normalized();
+    t[k] = {pose.translation.x(), pose.translation.y(), pose.translation.z()};
+  }
+  ceres::Problem problem;
+  auto add = [&](size_t i, size_t j, const Rigid3d& i_from_j, double sm, double sr,
+                 ceres::LossFunction* loss) {
+    const double offset = WrapAngle(Yaw(base[j]) - Yaw(base[i] * i_from_j.rotation));
+    problem.AddResidualBlock(
+        new ceres::AutoDiffCostFunction<YawPositionResidual, 4, 1, 3, 1, 3>(
+            new YawPositionResidual(base[i], i_from_j.translation, offset, sm, sr)),
+        loss, &yaw[i], t[i].data(), &yaw[j], t[j].data());
+  };
+  for (size_t k = 0; k + 1 < n; ++k) {
+    const Keyframe& a = keyframes_[track_first_ + k];
+    const Keyframe& b = keyframes_[track_first_ + k + 1];
+    const double dist = b.path_m - a.path_m;
+    add(k, k + 1, a.odometry.Inverse() * b.odometry,
+        std::max(options_.odometry_min_sigma_m, options_.odometry_sigma_m_per_m * dist),
+        std::max(options_.odometry_min_sigma_rad, options_.odometry_sigma_rad_per_m * dist),
+        nullptr);
+  }
+  for (size_t e = 0; e < loops_.size(); ++e) {
+    const auto [i, j] = loop_indices_[e];
+    if (i < track_first_) continue;
+    add(i - track_first_, j - track_first_, loops_[e].old_body_from_new_body,
+        std::max(options_.loop_sigma_m, loops_[e].sigma_m),
+        std::max(options_.loop_sigma_rad, loops_[e].sigma_rad), new ceres::CauchyLoss(1.0));
+  }
+  problem.SetParameterBlockConstant(&yaw[0]);
+  problem.SetParameterBlockConstant(t[0].data());
+  ceres::Solver::Options so;
+  so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  so.max_num_iterations = 50;
+  so.num_threads = 1;
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &problem, &summary);
+  for (size_t k = 0; k < n; ++k) {
+    Keyframe& kf = keyframes_[track_first_ + k];
+    const Rigid3d pose(Eigen::AngleAxisd(yaw[k], Eigen::Vector3d::UnitZ()) * base[k],
+                       Eigen::Vector3d(t[k][0], t[k][1], t[k][2]));
+    kf.correction = pose * kf.odometry.Inverse();
+  }
+}
+
+double LoopCloser::LoopResidualM(size_t e) const {
+  const auto [i, j] = loop_indices_[e];
+  const Rigid3d pi = keyframes_[i].correction * keyframes_[i].odometry;
+  const Rigid3d pj = keyframes_[j].correction * keyframes_[j].odometry;
+  return ((pi.Inverse() * pj).translation - loops_[e].old_body_from_new_body.translation).norm();
 }
 
 void LoopCloser::NewTrack(int64_t t_ns) {

@@ -118,7 +118,8 @@ VioRunResult RunOnPairs(const camera::StereoRig& rig, const Rigid3d& body_from_c
     if (options.gnss)
       spdlog::warn("vio: loop closure is not run with GNSS fusion");
     else
-      closer.emplace(rig, body_from_cam0, lc);
+      closer.emplace(rig, body_from_cam0, lc,
+                     /*gravity_aligned=*/options.vio.mode == VioMode::kStereoImu);
   }
   TimingStats loop_timing;  // loop closure and the per-frame latency
   if (closer) closer->set_timing(&loop_timing);

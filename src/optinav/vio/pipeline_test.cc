@@ -573,6 +573,9 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(fl.min_separation_m, dl.min_separation_m);
   EXPECT_EQ(fl.search_radius_m, dl.search_radius_m);
   EXPECT_EQ(fl.search_radius_fraction, dl.search_radius_fraction);
+  EXPECT_EQ(fl.max_loop_distance_m, dl.max_loop_distance_m);
+  EXPECT_EQ(fl.max_loop_residual_m, dl.max_loop_residual_m);
+  EXPECT_EQ(fl.point_sigma_px, dl.point_sigma_px);
   EXPECT_EQ(fl.max_view_angle_deg, dl.max_view_angle_deg);
   EXPECT_EQ(fl.max_candidates, dl.max_candidates);
   EXPECT_EQ(fl.match_ratio, dl.match_ratio);

@@ -17,9 +17,12 @@
 // ratio test), PnP RANSAC (`pnp_px`), refined on the inliers. A loop is accepted with at least
 // `min_inliers` inliers and a relative pose that agrees with the corrected odometry within the
 // search radius and the view angle.
-// Pose graph (Ceres): one 6-DoF pose per keyframe of the track; odometry edges between
-// consecutive keyframes (sigma growing with the distance between them) and loop edges (tighter,
-// Cauchy loss); the track's first keyframe is held fixed.
+// Pose graph (Ceres): one pose per keyframe of the track; odometry edges between consecutive
+// keyframes (sigma growing with the distance between them) and loop edges (tighter, Cauchy loss);
+// the track's first keyframe is held fixed. Without an IMU all 6 degrees of freedom are free.
+// With one (`gravity_aligned`: the odometry's world z is up, so its roll and pitch are observed
+// and only yaw and position drift) each keyframe has 4: a yaw about the world's z axis and a
+// position, roll and pitch stay the odometry's (as VINS-Mono's 4-DoF pose graph).
 #pragma once
 
 #include <cstdint>
@@ -37,9 +40,9 @@
 namespace optinav::vio {
 
 struct LoopClosureOptions {
-  // Where it runs: stereo-only mode by default; stereo-imu mode only when asked (its 6-DoF pose
-  // graph does not keep gravity's direction exactly). Never with GNSS fusion (the ENU alignment
-  // ties to the uncorrected odometry).
+  // Where it runs: stereo-only mode by default; stereo-imu mode (the 4-DoF graph) only when
+  // asked (docs/VIO.md, loop closure). Never with GNSS fusion (the ENU alignment ties to the
+  // uncorrected odometry).
   bool stereo_only = true;
   bool stereo_imu = false;
   int orb_features = 2000;             // in the left image
@@ -50,9 +53,13 @@ struct LoopClosureOptions {
   double search_radius_m = 5.0;        // candidate within this + fraction x path since it
   double search_radius_fraction = 0.01;
   double max_view_angle_deg = 40.0;  // between the optical axes
-  int max_candidates = 5;            // tried per keyframe, nearest first
-  double match_ratio = 0.8;          // Lowe's ratio test
-  double pnp_px = 2.0;               // PnP RANSAC threshold, pixels
+  // A loop's measured relative translation must be below this (0: no limit, the default). The
+  // car route's loops seen from 11-13 m away came out 1.5-2 m off, but an 8 m limit moved the
+  // stereo-inertial runs both ways (docs/VIO.md, loop closure), so it is off.
+  double max_loop_distance_m = 0.0;
+  int max_candidates = 5;    // tried per keyframe, nearest first
+  double match_ratio = 0.8;  // Lowe's ratio test
+  double pnp_px = 2.0;       // PnP RANSAC threshold, pixels
   int min_inliers = 25;
   double min_interval_s = 1.0;  // between two accepted loops
   // After a loop, a new one must agree with the odometry chained through the last loop within
@@ -68,6 +75,17 @@ struct LoopClosureOptions {
   double odometry_min_sigma_rad = 0.001;
   double loop_sigma_m = 0.05;
   double loop_sigma_rad = 0.005;
+  // After the solve, a loop edge whose translation still disagrees with the graph by more than
+  // this is an outlier the Cauchy loss has down-weighted (a wrong match on repeated texture): it
+  // is removed and the graph solved again without it. 0: keep every verified loop.
+  double max_loop_residual_m = 1.0;
+  // Feature position noise (pixels) behind each loop's own sigmas: the PnP pose's covariance
+  // from its inliers, each a stereo point whose depth noise grows with the square of its depth
+  // (disparity noise of this size) seen with this noise in the current image. A loop edge's
+  // sigmas are the larger of these and loop_sigma_m / loop_sigma_rad: a loop measured from
+  // distant points (a place seen again from 10 m away) weighs less than one from near points.
+  // 0: the fixed sigmas only.
+  double point_sigma_px = 0.5;
 
   std::string Check() const;  // empty when valid
 };
@@ -77,12 +95,28 @@ struct LoopEdge {
   Rigid3d old_body_from_new_body;      // measured
   int inliers = 0;
   double correction_m = 0;  // how far the loop moved the new keyframe
+  double residual_m = 0;    // the edge's translation disagreement after the solve
+  // The PnP pose's standard deviations (largest axis; point_sigma_px), 0 when not computed.
+  double sigma_m = 0, sigma_rad = 0;
 };
+
+// Standard deviations (largest axis) of the relative pose cand_cam_from_cur_cam measured by PnP
+// from stereo points `object` (candidate camera) seen at `image` (current camera, normalized
+// coordinates) by unweighted least squares (as cv::solvePnP): the sandwich covariance
+// (J^T J)^-1 J^T C J (J^T J)^-1, each residual's covariance C the image noise plus the point's
+// stereo noise (depth sigma z^2 sigma_px / (f b), lateral z sigma_px / f) projected. `sigma_m` is
+// for the inverse transform's translation (the loop edge's), `sigma_rad` for the rotation; infinite
+// when the points do not fix the pose.
+void PnpSigmas(const Rigid3d& cur_cam_from_cand_cam, const std::vector<cv::Point3f>& object,
+               const std::vector<cv::Point2f>& image, double focal_px, double baseline_m,
+               double sigma_px, double* sigma_m, double* sigma_rad);
 
 class LoopCloser {
  public:
+  // `gravity_aligned`: the odometry's world frame is gravity-aligned (z up; stereo-inertial
+  // odometry): the 4-DoF pose graph.
   LoopCloser(const camera::StereoRig& rig, const Rigid3d& body_from_cam0,
-             const LoopClosureOptions& options);
+             const LoopClosureOptions& options, bool gravity_aligned = false);
 
   // A keyframe's estimate (odometry world) and its stereo images (8-bit grey), in time order.
   // Returns true when it closed a loop (the corrections changed).
@@ -114,12 +148,16 @@ class LoopCloser {
   Keyframe Describe(const StateEstimate& state, const cv::Mat& left, const cv::Mat& right) const;
   // The relative pose cand_body_from_cur_body from matches, or false.
   bool Match(const Keyframe& candidate, const Keyframe& current, const Rigid3d& predicted,
-             double radius_m, Rigid3d* cand_body_from_cur_body, int* inliers) const;
+             double radius_m, LoopEdge* edge) const;
   void Optimize();
+  void OptimizeYawAndPosition();  // the 4-DoF graph
+  // Translation disagreement of loop edge `e` with the graph's current poses.
+  double LoopResidualM(size_t e) const;
 
   camera::StereoRig rig_;
   Rigid3d body_from_cam0_;
   LoopClosureOptions options_;
+  bool gravity_aligned_ = false;
   cv::Ptr<cv::Feature2D> orb_;
   Eigen::Matrix3d essential_;  // of right_from_left: x_r^T E x_l = 0
   std::vector<Keyframe> keyframes_;
