@@ -38,7 +38,7 @@ void AddRunOptions(CLI::App& cmd, app::VioRunSettings* st, VioFlags* f) {
   cmd.add_option("--mode", f->mode, "stereo-imu|stereo (default: the config's, else stereo-imu)");
   cmd.add_option("--loop-closure", f->loop_closure,
                  "on|off: close loops with earlier keyframes and correct the output (default: "
-                 "the config's: on in stereo mode, off in stereo-imu mode; never with --gnss)");
+                 "the config's: on in both modes; never with --gnss)");
   cli::OutputFile(
       cmd.add_option("--odometry-out", st->odometry_out,
                      "also write the body trajectory before the loop corrections, TUM"));

@@ -40,11 +40,11 @@
 namespace optinav::vio {
 
 struct LoopClosureOptions {
-  // Where it runs: stereo-only mode by default; stereo-imu mode (the 4-DoF graph) only when
-  // asked (docs/VIO.md, loop closure). Never with GNSS fusion (the ENU alignment ties to the
+  // Where it runs: stereo-only mode (6-DoF graph) and stereo-imu mode (4-DoF graph), both by
+  // default (docs/VIO.md, loop closure). Never with GNSS fusion (the ENU alignment ties to the
   // uncorrected odometry).
   bool stereo_only = true;
-  bool stereo_imu = false;
+  bool stereo_imu = true;
   int orb_features = 2000;             // in the left image
   double stereo_epipolar_px = 1.5;     // left-right match: distance to the epipolar line
   double max_depth_baselines = 100.0;  // triangulated points farther than this x baseline dropped
