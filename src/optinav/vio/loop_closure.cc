@@ -110,6 +110,15 @@ struct YawPositionResidual {
   double yaw_offset, w_t, w_r;
 };
 
+void SolvePoseGraph(ceres::Problem* problem) {
+  ceres::Solver::Options so;
+  so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  so.max_num_iterations = 50;
+  so.num_threads = 1;
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, problem, &summary);
+}
+
 double AngleBetween(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::atan2(a.cross(b).norm(), a.dot(b));
 }
@@ -409,31 +418,11 @@ void LoopCloser::Optimize() {
                                  new RelativePoseResidual(i_from_j, sm, sr)),
                              loss, q[i].data(), t[i].data(), q[j].data(), t[j].data());
   };
-  for (size_t k = 0; k + 1 < n; ++k) {
-    const Keyframe& a = keyframes_[track_first_ + k];
-    const Keyframe& b = keyframes_[track_first_ + k + 1];
-    const double dist = b.path_m - a.path_m;
-    add(k, k + 1, a.odometry.Inverse() * b.odometry,
-        std::max(options_.odometry_min_sigma_m, options_.odometry_sigma_m_per_m * dist),
-        std::max(options_.odometry_min_sigma_rad, options_.odometry_sigma_rad_per_m * dist),
-        nullptr);
-  }
-  for (size_t e = 0; e < loops_.size(); ++e) {
-    const auto [i, j] = loop_indices_[e];
-    if (i < track_first_) continue;
-    add(i - track_first_, j - track_first_, loops_[e].old_body_from_new_body,
-        std::max(options_.loop_sigma_m, loops_[e].sigma_m),
-        std::max(options_.loop_sigma_rad, loops_[e].sigma_rad), new ceres::CauchyLoss(1.0));
-  }
+  AddEdges(add);
   for (size_t k = 0; k < n; ++k) problem.SetManifold(q[k].data(), &manifold);
   problem.SetParameterBlockConstant(q[0].data());
   problem.SetParameterBlockConstant(t[0].data());
-  ceres::Solver::Options so;
-  so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  so.max_num_iterations = 50;
-  so.num_threads = 1;
-  ceres::Solver::Summary summary;
-  ceres::Solve(so, &problem, &summary);
+  SolvePoseGraph(&problem);
   for (size_t k = 0; k < n; ++k) {
     Keyframe& kf = keyframes_[track_first_ + k];
     const Rigid3d pose(Eigen::Quaterniond(q[k][3], q[k][0], q[k][1], q[k][2]).normalized(),
@@ -462,6 +451,20 @@ void LoopCloser::OptimizeYawAndPosition() {
             new YawPositionResidual(base[i], i_from_j.translation, offset, sm, sr)),
         loss, &yaw[i], t[i].data(), &yaw[j], t[j].data());
   };
+  AddEdges(add);
+  problem.SetParameterBlockConstant(&yaw[0]);
+  problem.SetParameterBlockConstant(t[0].data());
+  SolvePoseGraph(&problem);
+  for (size_t k = 0; k < n; ++k) {
+    Keyframe& kf = keyframes_[track_first_ + k];
+    const Rigid3d pose(Eigen::AngleAxisd(yaw[k], Eigen::Vector3d::UnitZ()) * base[k],
+                       Eigen::Vector3d(t[k][0], t[k][1], t[k][2]));
+    kf.correction = pose * kf.odometry.Inverse();
+  }
+}
+
+void LoopCloser::AddEdges(const EdgeAdder& add) const {
+  const size_t n = keyframes_.size() - track_first_;
   for (size_t k = 0; k + 1 < n; ++k) {
     const Keyframe& a = keyframes_[track_first_ + k];
     const Keyframe& b = keyframes_[track_first_ + k + 1];
@@ -477,20 +480,6 @@ void LoopCloser::OptimizeYawAndPosition() {
     add(i - track_first_, j - track_first_, loops_[e].old_body_from_new_body,
         std::max(options_.loop_sigma_m, loops_[e].sigma_m),
         std::max(options_.loop_sigma_rad, loops_[e].sigma_rad), new ceres::CauchyLoss(1.0));
-  }
-  problem.SetParameterBlockConstant(&yaw[0]);
-  problem.SetParameterBlockConstant(t[0].data());
-  ceres::Solver::Options so;
-  so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  so.max_num_iterations = 50;
-  so.num_threads = 1;
-  ceres::Solver::Summary summary;
-  ceres::Solve(so, &problem, &summary);
-  for (size_t k = 0; k < n; ++k) {
-    Keyframe& kf = keyframes_[track_first_ + k];
-    const Rigid3d pose(Eigen::AngleAxisd(yaw[k], Eigen::Vector3d::UnitZ()) * base[k],
-                       Eigen::Vector3d(t[k][0], t[k][1], t[k][2]));
-    kf.correction = pose * kf.odometry.Inverse();
   }
 }
 

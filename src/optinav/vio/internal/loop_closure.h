@@ -26,6 +26,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -36,6 +37,10 @@
 #include "optinav/geometry/lie.h"
 #include "optinav/util/timer.h"
 #include "optinav/vio/backend.h"
+
+namespace ceres {
+class LossFunction;
+}  // namespace ceres
 
 namespace optinav::vio {
 
@@ -151,6 +156,11 @@ class LoopCloser {
              double radius_m, LoopEdge* edge) const;
   void Optimize();
   void OptimizeYawAndPosition();  // the 4-DoF graph
+  // The track's odometry edges (consecutive keyframes) and loop edges, as (i, j, i_from_j,
+  // sigma_m, sigma_rad, loss) with i, j indices from the track's first keyframe.
+  using EdgeAdder =
+      std::function<void(size_t, size_t, const Rigid3d&, double, double, ceres::LossFunction*)>;
+  void AddEdges(const EdgeAdder& add) const;
   // Translation disagreement of loop edge `e` with the graph's current poses.
   double LoopResidualM(size_t e) const;
 
