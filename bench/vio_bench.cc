@@ -31,6 +31,7 @@
 #include "optinav/vio/estimator.h"
 #include "optinav/vio/gnss_smoother.h"
 #include "optinav/vio/internal/frontend.h"
+#include "optinav/vio/pipeline.h"
 
 namespace {
 
@@ -53,17 +54,11 @@ Clip ReadClip(const fs::path& dir) {
   open.drop_missing_images = true;
   c.ds = io::OpenEurocDataset(dir.string(), open);
   c.rig = io::ToStereoRig(c.ds.cam0->calibration, c.ds.cam1->calibration);
-  Eigen::Quaterniond body_from_imu = Eigen::Quaterniond::Identity();
   if (c.ds.imu_calibration) {
-    const io::ImuCalibration& k = *c.ds.imu_calibration;
-    c.noise.gyro_noise_density = k.gyroscope_noise_density;
-    c.noise.accel_noise_density = k.accelerometer_noise_density;
-    c.noise.gyro_random_walk = k.gyroscope_random_walk;
-    c.noise.accel_random_walk = k.accelerometer_random_walk;
-    body_from_imu = k.body_from_imu.rotation;
+    vio::BodyImu imu = vio::ReadBodyImu(c.ds);
+    c.noise = imu.noise;
+    c.imu = std::move(imu.samples);
   }
-  for (const io::ImuSample& s : io::ReadImuCsv(c.ds.imu_csv))
-    c.imu.push_back({s.t_ns, body_from_imu * s.gyro_rad_s, body_from_imu * s.accel_m_s2});
   std::map<int64_t, std::string> rights;
   for (const auto& r : c.ds.cam1->images) rights[r.t_ns] = r.path;
   for (const auto& l : c.ds.cam0->images) {

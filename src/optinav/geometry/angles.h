@@ -1,4 +1,4 @@
-// Angle wrapping in degrees: the one definition for headings, bearings and attitude residuals.
+// Angle wrapping: the one definition for headings, bearings, yaw offsets and attitude residuals.
 #pragma once
 
 #include <cmath>
@@ -14,5 +14,8 @@ inline double WrapDeg360(double a) {
 
 // In [-180, 180).
 inline double WrapDeg180(double a) { return WrapDeg360(a + 180.0) - 180.0; }
+
+// Radians, in [-pi, pi] (the nearest multiple of 2 pi removed).
+inline double WrapRadPi(double a) { return std::remainder(a, 2 * M_PI); }
 
 }  // namespace optinav

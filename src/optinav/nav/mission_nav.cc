@@ -245,7 +245,7 @@ MissionResult RunNavMission(const maploc::MapDatabase& db, const geo::GeoRaster&
       const double course = v.norm() > 0.3 * o.speed_m_s ? std::atan2(v.x(), v.y()) : yaw_e * kDeg;
       const double bearing = std::atan2(to_target.x(), to_target.y());
       command_deg = WrapDeg360(bearing / kDeg);
-      flight.Command(kCourseGain * std::remainder(bearing - course, 2 * M_PI));
+      flight.Command(kCourseGain * WrapRadPi(bearing - course));
     }
     step_times.navigation_ms += nav_timer.ElapsedMs();
     const double t_s = t * 1e-9;

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <random>
 
+#include "optinav/geometry/angles.h"
 #include "optinav/util/error.h"
 
 namespace optinav::sim {
@@ -136,7 +137,7 @@ BodyTrajectory MakeDroneTrajectory(const std::vector<DroneWaypoint>& waypoints, 
       y = d.head<2>().norm() > 1e-6 ? std::atan2(d.y(), d.x()) : prev_yaw;
     }
     // Unwrap so the spline turns the short way.
-    if (i > 0) y = prev_yaw + std::remainder(y - prev_yaw, 2 * M_PI);
+    if (i > 0) y = prev_yaw + WrapRadPi(y - prev_yaw);
     yaw(i, 0) = prev_yaw = y;
   }
   return BodyTrajectory(QuinticSpline(pos, dt), QuinticSpline(yaw, dt),
@@ -167,7 +168,7 @@ std::vector<DroneWaypoint> RandomDroneWaypoints(const RandomDroneRouteOptions& o
         (next.array() > (o.area_max - margin).array()).any()) {
       const Eigen::Vector2d to_c = centre - p;
       const double want = std::atan2(to_c.y(), to_c.x());
-      heading += 0.6 * std::remainder(want - heading, 2 * M_PI);
+      heading += 0.6 * WrapRadPi(want - heading);
     }
     p += step * Eigen::Vector2d(std::cos(heading), std::sin(heading));
   }

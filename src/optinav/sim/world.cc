@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "optinav/geo/raster.h"
+#include "optinav/geometry/angles.h"
 #include "optinav/util/error.h"
 
 namespace optinav::sim {
@@ -295,7 +296,7 @@ World MakeUrban(const WorldOptions& o) {
     const auto it = AtArcLength(route, s);
     const auto ahead = AtArcLength(route, s + 8);
     if (ahead == route.end()) break;
-    if (std::abs(std::remainder(ahead->yaw - it->yaw, 2 * M_PI)) > 0.05) continue;  // corner
+    if (std::abs(WrapRadPi(ahead->yaw - it->yaw)) > 0.05) continue;  // corner
     if (u01(rng) < 0.45f) continue;
     const float off = u01(rng) < 0.5f ? -2.95f : 9.0f;
     const Eigen::Vector2f c = it->p + off * it->left;

@@ -70,7 +70,7 @@ std::string BackendOptions::Check() const {
   if (!(stereo_only_outlier_pixels >= 0)) return "stereo_only_outlier_pixels must be >= 0";
   if (!(predicted_gate_pixels >= 0)) return "predicted_gate_pixels must be >= 0";
   if (max_iterations < 1) return "max_iterations must be >= 1";
-  if (!(max_solver_time_s > 0)) return "max_solver_time_s must be > 0";
+  if (!(max_solver_time_s >= 0)) return "max_solver_time_s must be >= 0 (0: no limit)";
   if (!(initial_trust_region_radius > 0))
     return "initial_trust_region_radius must be > 0, got " +
            std::to_string(initial_trust_region_radius);
@@ -520,13 +520,14 @@ ceres::Problem::Options ProblemOptions() {
   return o;
 }
 
-// Single-threaded (deterministic) Levenberg-Marquardt within the per-frame budget.
+// Single-threaded Levenberg-Marquardt within the per-frame iteration budget (deterministic unless
+// a wall-clock limit is set).
 ceres::Solver::Options SolverOptions(const BackendOptions& options) {
   ceres::Solver::Options o;
   o.max_num_iterations = options.max_iterations;
   o.initial_trust_region_radius = options.initial_trust_region_radius;
   o.function_tolerance = options.function_tolerance;
-  o.max_solver_time_in_seconds = options.max_solver_time_s;
+  if (options.max_solver_time_s > 0) o.max_solver_time_in_seconds = options.max_solver_time_s;
   o.num_threads = 1;
   o.logging_type = ceres::SILENT;
   o.minimizer_progress_to_stdout = false;

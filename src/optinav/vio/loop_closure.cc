@@ -14,6 +14,7 @@
 #include <spdlog/spdlog.h>
 
 #include "optinav/features/features.h"
+#include "optinav/geometry/angles.h"
 #include "optinav/util/error.h"
 
 namespace optinav::vio {
@@ -76,8 +77,6 @@ double Yaw(const Eigen::Quaterniond& q) {
   const Eigen::Matrix3d r = q.toRotationMatrix();
   return std::atan2(r(1, 0), r(0, 0));
 }
-
-double WrapAngle(double a) { return std::remainder(a, 2 * M_PI); }
 
 // Relative pose i -> j of the gravity-aligned (4-DoF) pose graph. Keyframe k's pose is
 // (Rz(yaw_k) * base_k, t_k) with base_k its rotation before the solve (roll and pitch fixed).
@@ -398,12 +397,12 @@ bool LoopCloser::AddKeyframe(const StateEstimate& state, const cv::Mat& left,
 
 void LoopCloser::Optimize() {
   if (gravity_aligned_) return OptimizeYawAndPosition();
-  const size_t n = keyframes_.size() - track_first_;
+  std::vector<Rigid3d> poses = TrackPoses();
+  const size_t n = poses.size();
   std::vector<std::array<double, 4>> q(n);  // x y z w (Eigen's storage)
   std::vector<std::array<double, 3>> t(n);
   for (size_t k = 0; k < n; ++k) {
-    const Keyframe& kf = keyframes_[track_first_ + k];
-    const Rigid3d pose = kf.correction * kf.odometry;
+    const Rigid3d& pose = poses[k];
     const Eigen::Quaterniond r = pose.rotation.normalized();
     q[k] = {r.x(), r.y(), r.z(), r.w()};
     t[k] = {pose.translation.x(), pose.translation.y(), pose.translation.z()};
@@ -423,29 +422,27 @@ void LoopCloser::Optimize() {
   problem.SetParameterBlockConstant(q[0].data());
   problem.SetParameterBlockConstant(t[0].data());
   SolvePoseGraph(&problem);
-  for (size_t k = 0; k < n; ++k) {
-    Keyframe& kf = keyframes_[track_first_ + k];
-    const Rigid3d pose(Eigen::Quaterniond(q[k][3], q[k][0], q[k][1], q[k][2]).normalized(),
+  for (size_t k = 0; k < n; ++k)
+    poses[k] = Rigid3d(Eigen::Quaterniond(q[k][3], q[k][0], q[k][1], q[k][2]).normalized(),
                        Eigen::Vector3d(t[k][0], t[k][1], t[k][2]));
-    kf.correction = pose * kf.odometry.Inverse();
-  }
+  SetTrackPoses(poses);
 }
 
 void LoopCloser::OptimizeYawAndPosition() {
-  const size_t n = keyframes_.size() - track_first_;
+  std::vector<Rigid3d> poses = TrackPoses();
+  const size_t n = poses.size();
   std::vector<Eigen::Quaterniond> base(n);
   std::vector<double> yaw(n, 0.0);
   std::vector<std::array<double, 3>> t(n);
   for (size_t k = 0; k < n; ++k) {
-    const Keyframe& kf = keyframes_[track_first_ + k];
-    const Rigid3d pose = kf.correction * kf.odometry;
+    const Rigid3d& pose = poses[k];
     base[k] = pose.rotation.normalized();
     t[k] = {pose.translation.x(), pose.translation.y(), pose.translation.z()};
   }
   ceres::Problem problem;
   auto add = [&](size_t i, size_t j, const Rigid3d& i_from_j, double sm, double sr,
                  ceres::LossFunction* loss) {
-    const double offset = WrapAngle(Yaw(base[j]) - Yaw(base[i] * i_from_j.rotation));
+    const double offset = WrapRadPi(Yaw(base[j]) - Yaw(base[i] * i_from_j.rotation));
     problem.AddResidualBlock(
         new ceres::AutoDiffCostFunction<YawPositionResidual, 4, 1, 3, 1, 3>(
             new YawPositionResidual(base[i], i_from_j.translation, offset, sm, sr)),
@@ -455,11 +452,23 @@ void LoopCloser::OptimizeYawAndPosition() {
   problem.SetParameterBlockConstant(&yaw[0]);
   problem.SetParameterBlockConstant(t[0].data());
   SolvePoseGraph(&problem);
-  for (size_t k = 0; k < n; ++k) {
-    Keyframe& kf = keyframes_[track_first_ + k];
-    const Rigid3d pose(Eigen::AngleAxisd(yaw[k], Eigen::Vector3d::UnitZ()) * base[k],
+  for (size_t k = 0; k < n; ++k)
+    poses[k] = Rigid3d(Eigen::AngleAxisd(yaw[k], Eigen::Vector3d::UnitZ()) * base[k],
                        Eigen::Vector3d(t[k][0], t[k][1], t[k][2]));
-    kf.correction = pose * kf.odometry.Inverse();
+  SetTrackPoses(poses);
+}
+
+std::vector<Rigid3d> LoopCloser::TrackPoses() const {
+  std::vector<Rigid3d> poses;
+  for (size_t k = track_first_; k < keyframes_.size(); ++k)
+    poses.push_back(keyframes_[k].correction * keyframes_[k].odometry);
+  return poses;
+}
+
+void LoopCloser::SetTrackPoses(const std::vector<Rigid3d>& poses) {
+  for (size_t k = 0; k < poses.size(); ++k) {
+    Keyframe& kf = keyframes_[track_first_ + k];
+    kf.correction = poses[k] * kf.odometry.Inverse();
   }
 }
 

@@ -223,6 +223,24 @@ VioRunResult RunOnPairs(const camera::StereoRig& rig, const Rigid3d& body_from_c
 
 }  // namespace
 
+BodyImu ReadBodyImu(const io::EurocDataset& ds) {
+  if (ds.imu_csv.empty() || !ds.imu_calibration)
+    throw Error("no IMU: mav0/imu0 with data.csv and sensor.yaml is needed", {.file = ds.mav0_dir});
+  const io::ImuCalibration& c = *ds.imu_calibration;
+  BodyImu imu;
+  imu.noise.gyro_noise_density = c.gyroscope_noise_density;
+  imu.noise.accel_noise_density = c.accelerometer_noise_density;
+  imu.noise.gyro_random_walk = c.gyroscope_random_walk;
+  imu.noise.accel_random_walk = c.accelerometer_random_walk;
+  if (c.body_from_imu.translation.norm() > 0.01)
+    spdlog::warn("vio: imu0 T_BS has a {:.3f} m lever arm; it is ignored (IMU taken as body)",
+                 c.body_from_imu.translation.norm());
+  const Eigen::Quaterniond r = c.body_from_imu.rotation;
+  for (const io::ImuSample& s : io::ReadImuCsv(ds.imu_csv))
+    imu.samples.push_back({s.t_ns, r * s.gyro_rad_s, r * s.accel_m_s2});
+  return imu;
+}
+
 VioRunResult RunVioOnEuroc(const std::string& dataset_dir, const VioRunOptions& options) {
   if (const std::string e = options.vio.Check(); !e.empty()) throw Error(e, {.field = "config"});
   io::EurocOpenOptions open;
@@ -239,21 +257,8 @@ VioRunResult RunVioOnEuroc(const std::string& dataset_dir, const VioRunOptions& 
   const camera::StereoRig rig = io::ToStereoRig(ds.cam0->calibration, ds.cam1->calibration);
 
   VioRunResult result;
-  ImuNoise noise;
-  std::vector<TimedImuSample> imu;
-  if (use_imu) {
-    const io::ImuCalibration& c = *ds.imu_calibration;
-    noise.gyro_noise_density = c.gyroscope_noise_density;
-    noise.accel_noise_density = c.accelerometer_noise_density;
-    noise.gyro_random_walk = c.gyroscope_random_walk;
-    noise.accel_random_walk = c.accelerometer_random_walk;
-    if (c.body_from_imu.translation.norm() > 0.01)
-      spdlog::warn("vio: imu0 T_BS has a {:.3f} m lever arm; it is ignored (IMU taken as body)",
-                   c.body_from_imu.translation.norm());
-    const Eigen::Quaterniond r = c.body_from_imu.rotation;
-    for (const io::ImuSample& s : io::ReadImuCsv(ds.imu_csv))
-      imu.push_back({s.t_ns, r * s.gyro_rad_s, r * s.accel_m_s2});
-  }
+  BodyImu imu;
+  if (use_imu) imu = ReadBodyImu(ds);
 
   // Pair left and right images by stamp.
   std::vector<StereoPair> pairs;
@@ -270,8 +275,8 @@ VioRunResult RunVioOnEuroc(const std::string& dataset_dir, const VioRunOptions& 
   if (result.frames_unpaired > 0)
     spdlog::warn("vio: {} left frames without a right frame within 1 ms are skipped",
                  result.frames_unpaired);
-  return RunOnPairs(rig, ds.cam0->calibration.body_from_cam, noise, imu, std::move(pairs), options,
-                    std::move(result));
+  return RunOnPairs(rig, ds.cam0->calibration.body_from_cam, imu.noise, imu.samples,
+                    std::move(pairs), options, std::move(result));
 }
 
 VioRunResult RunVioOnAirsim(const std::string& dataset_dir, const VioRunOptions& options) {

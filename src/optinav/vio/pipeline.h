@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "optinav/geometry/trajectory.h"
+#include "optinav/io/euroc_dataset.h"
 #include "optinav/util/timer.h"
 #include "optinav/vio/estimator.h"
 #include "optinav/vio/gnss_smoother.h"
@@ -87,6 +88,15 @@ VioRunResult RunVioOnEuroc(const std::string& dataset_dir, const VioRunOptions& 
 // name, the rig from airsim_hfov_deg / airsim_baseline_m, the camera mounting from
 // camera_info.csv when present (else looking along the body x axis).
 VioRunResult RunVioOnAirsim(const std::string& dataset_dir, const VioRunOptions& options);
+
+// imu0 of a EuRoC dataset in the body frame: every sample rotated by its T_BS (a lever arm is
+// ignored, with a warning) and the noise densities and random walks of its sensor.yaml. Throws
+// Error when the dataset has no imu0 or the csv is malformed.
+struct BodyImu {
+  ImuNoise noise;
+  std::vector<TimedImuSample> samples;
+};
+BodyImu ReadBodyImu(const io::EurocDataset& ds);
 
 // The estimates as a trajectory of the body frame, or of the left camera with body_from_cam.
 Trajectory EstimatesToTrajectory(const std::vector<FrameEstimate>& estimates,

@@ -156,6 +156,10 @@ class LoopCloser {
              double radius_m, LoopEdge* edge) const;
   void Optimize();
   void OptimizeYawAndPosition();  // the 4-DoF graph
+  // The current track's keyframe poses with their corrections, and back (the solved poses
+  // become corrections of the odometry).
+  std::vector<Rigid3d> TrackPoses() const;
+  void SetTrackPoses(const std::vector<Rigid3d>& poses);
   // The track's odometry edges (consecutive keyframes) and loop edges, as (i, j, i_from_j,
   // sigma_m, sigma_rad, loss) with i, j indices from the track's first keyframe.
   using EdgeAdder =
