@@ -16,5 +16,13 @@ TEST(Angles, Wrap) {
   EXPECT_DOUBLE_EQ(WrapDeg180(-5), -5);
 }
 
+TEST(Angles, WrapRadians) {
+  EXPECT_NEAR(WrapRadPi(1.5 * M_PI), -0.5 * M_PI, 1e-15);
+  EXPECT_NEAR(WrapRadPi(-1.5 * M_PI), 0.5 * M_PI, 1e-15);
+  EXPECT_NEAR(WrapRadPi(0.1 + 6 * M_PI), 0.1, 1e-14);
+  EXPECT_DOUBLE_EQ(WrapRadPi(-0.3), -0.3);
+  EXPECT_NEAR(std::abs(WrapRadPi(M_PI)), M_PI, 1e-15);  // either end of [-pi, pi]
+}
+
 }  // namespace
 }  // namespace optinav

@@ -525,6 +525,39 @@ TEST_F(SensorFaultTest, OutOfOrderAndDuplicatedFrames) {
 namespace optinav::vio {
 namespace {
 
+TEST(Pipeline, ReadBodyImuRotatesIntoTheBodyAndTakesTheNoise) {
+  const auto dir = optinav::testing::MakeTempDir("body_imu");
+  io::EurocDataset ds;
+  ds.mav0_dir = (dir / "mav0").string();
+  ds.imu_csv = optinav::testing::WriteFile(
+      dir / "data.csv",
+      "#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],"
+      "a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]\n"
+      "1000,0.1,0,0,1,0,9.81\n2000,0,0.2,0,0,2,9.81\n");
+  EXPECT_ERROR(ReadBodyImu(ds), {.file = ds.mav0_dir}, "no IMU");  // no sensor.yaml
+  io::ImuCalibration c;
+  c.gyroscope_noise_density = 1e-4;
+  c.gyroscope_random_walk = 2e-5;
+  c.accelerometer_noise_density = 3e-3;
+  c.accelerometer_random_walk = 4e-4;
+  // IMU x along body y (90 deg about z), with a lever arm (ignored, warned).
+  c.body_from_imu =
+      Rigid3d(Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ())),
+              Eigen::Vector3d(0.05, 0, 0));
+  ds.imu_calibration = c;
+  const BodyImu imu = ReadBodyImu(ds);
+  EXPECT_EQ(imu.noise.gyro_noise_density, 1e-4);
+  EXPECT_EQ(imu.noise.gyro_random_walk, 2e-5);
+  EXPECT_EQ(imu.noise.accel_noise_density, 3e-3);
+  EXPECT_EQ(imu.noise.accel_random_walk, 4e-4);
+  ASSERT_EQ(imu.samples.size(), 2u);
+  EXPECT_EQ(imu.samples[1].t_ns, 2000);
+  EXPECT_LT((imu.samples[0].gyro - Eigen::Vector3d(0, 0.1, 0)).norm(), 1e-12);
+  EXPECT_LT((imu.samples[0].accel - Eigen::Vector3d(0, 1, 9.81)).norm(), 1e-12);
+  EXPECT_LT((imu.samples[1].gyro - Eigen::Vector3d(-0.2, 0, 0)).norm(), 1e-12);
+  EXPECT_LT((imu.samples[1].accel - Eigen::Vector3d(-2, 0, 9.81)).norm(), 1e-12);
+}
+
 TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   const std::filesystem::path config =
       std::filesystem::path(__FILE__).parent_path() / "../../../config/vio_euroc.yaml";
@@ -611,6 +644,15 @@ TEST(VioConfig, BadConfigsNameTheKey) {
       optinav::testing::WriteFile(dir / "b.yaml", "failure:\n  max_imu_gap_s: -1\n");
   // Range checks run on the whole options: the file and the message name it, no line.
   EXPECT_ERROR(LoadVioOptions(invalid), {.file = invalid}, "max gaps must be > 0");
+  // The solver's wall-clock limit: 0 is "none" (the default), below 0 an error.
+  const std::string time_limit =
+      optinav::testing::WriteFile(dir / "h.yaml", "backend:\n  max_solver_time_s: -0.1\n");
+  EXPECT_ERROR(LoadVioOptions(time_limit), {.file = time_limit},
+               "max_solver_time_s must be >= 0 (0: no limit)");
+  EXPECT_EQ(LoadVioOptions(
+                optinav::testing::WriteFile(dir / "i.yaml", "backend:\n  max_solver_time_s: 0.2\n"))
+                .backend.max_solver_time_s,
+            0.2);
   const std::string mode = optinav::testing::WriteFile(dir / "c.yaml", "mode: mono\n");
   EXPECT_ERROR(LoadVioOptions(mode), {.file = mode, .line = 1, .field = "mode"},
                "expected stereo-imu or stereo, got 'mono'");
