@@ -152,7 +152,6 @@ VioOptions LoadVioOptions(const std::string& path) {
         {"pnp_px", &l.pnp_px},
         {"min_inliers", &l.min_inliers},
         {"min_interval_s", &l.min_interval_s},
-        {"loop_consistency_m", &l.loop_consistency_m},
         {"odometry_sigma_m_per_m", &l.odometry_sigma_m_per_m},
         {"odometry_min_sigma_m", &l.odometry_min_sigma_m},
         {"odometry_sigma_rad_per_m", &l.odometry_sigma_rad_per_m},

@@ -7,6 +7,7 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <ceres/ceres.h>
+#include <fmt/format.h>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
 #include <opencv2/features2d.hpp>
@@ -34,7 +35,6 @@ std::string LoopClosureOptions::Check() const {
   if (!(match_ratio > 0 && match_ratio <= 1)) return "loop_closure.match_ratio must be in (0, 1]";
   if (min_inliers < 6) return "loop_closure.min_inliers must be >= 6";
   if (!(min_interval_s >= 0)) return "loop_closure.min_interval_s must be >= 0";
-  if (!(loop_consistency_m > 0)) return "loop_closure.loop_consistency_m must be > 0";
   if (!(odometry_sigma_m_per_m >= 0) || !(odometry_min_sigma_m > 0) ||
       !(odometry_sigma_rad_per_m >= 0) || !(odometry_min_sigma_rad > 0) || !(loop_sigma_m > 0) ||
       !(loop_sigma_rad > 0))
@@ -281,7 +281,19 @@ bool LoopCloser::Match(const Keyframe& candidate, const Keyframe& current, const
   if (n < options_.min_inliers) return false;
   const Rigid3d measured =
       body_from_cam0_ * cur_cam_from_cand_cam.Inverse() * body_from_cam0_.Inverse();
-  // Consistent with the corrected odometry?
+  double sigma_m = 0, sigma_rad = 0;
+  if (options_.point_sigma_px > 0)
+    PnpSigmas(cur_cam_from_cand_cam, obj_in, img_in, rig_.left.fx, rig_.Baseline(),
+              options_.point_sigma_px, &sigma_m, &sigma_rad);
+  // Every verified candidate, machine-readable (old and new keyframe, inliers,
+  // old_body_from_new_body as tx ty tz qx qy qz qw, PnP sigmas): the input of an offline study of
+  // loop selection.
+  spdlog::trace(
+      "loop-candidate {} {} {} {:.6f} {:.6f} {:.6f} {:.9f} {:.9f} {:.9f} {:.9f} {:.6f} {:.6f}",
+      candidate.t_ns, current.t_ns, n, measured.translation.x(), measured.translation.y(),
+      measured.translation.z(), measured.rotation.x(), measured.rotation.y(), measured.rotation.z(),
+      measured.rotation.w(), sigma_m, sigma_rad);
+  // Consistent with the odometry?
   const Rigid3d diff = predicted.Inverse() * measured;
   spdlog::debug(
       "vio: loop candidate {:.3f} s: {} refined inliers, {:.2f} m / {:.2f} deg from the "
@@ -296,9 +308,9 @@ bool LoopCloser::Match(const Keyframe& candidate, const Keyframe& current, const
     return false;
   edge->old_body_from_new_body = measured;
   edge->inliers = n;
+  edge->sigma_m = sigma_m;
+  edge->sigma_rad = sigma_rad;
   if (options_.point_sigma_px > 0) {
-    PnpSigmas(cur_cam_from_cand_cam, obj_in, img_in, rig_.left.fx, rig_.Baseline(),
-              options_.point_sigma_px, &edge->sigma_m, &edge->sigma_rad);
     spdlog::debug("vio: loop candidate {:.3f} s: PnP sigmas {:.3f} m, {:.4f} rad",
                   candidate.t_ns * 1e-9, edge->sigma_m, edge->sigma_rad);
   }
@@ -308,6 +320,10 @@ bool LoopCloser::Match(const Keyframe& candidate, const Keyframe& current, const
 bool LoopCloser::AddKeyframe(const StateEstimate& state, const cv::Mat& left,
                              const cv::Mat& right) {
   Keyframe kf = Describe(state, left, right);
+  spdlog::trace("loop-keyframe {} {:.6f} {:.6f} {:.6f} {:.9f} {:.9f} {:.9f} {:.9f}", kf.t_ns,
+                kf.odometry.translation.x(), kf.odometry.translation.y(),
+                kf.odometry.translation.z(), kf.odometry.rotation.x(), kf.odometry.rotation.y(),
+                kf.odometry.rotation.z(), kf.odometry.rotation.w());
   const bool first_of_track = keyframes_.size() == track_first_;
   if (!first_of_track) {
     const Keyframe& prev = keyframes_.back();
@@ -318,12 +334,11 @@ bool LoopCloser::AddKeyframe(const StateEstimate& state, const cv::Mat& left,
   if (first_of_track) return false;
   const size_t cur = keyframes_.size() - 1;
   const Keyframe& current = keyframes_[cur];
-  if (!loops_.empty() && loop_indices_.back().second >= track_first_ &&
-      (current.t_ns - loops_.back().t_new_ns) * 1e-9 < options_.min_interval_s)
-    return false;
 
-  // Candidates: the track's old keyframes near the corrected position, similar view direction.
-  const Rigid3d cur_pose = current.correction * current.odometry;
+  // Candidates: the track's old keyframes near the odometry's position, similar view direction.
+  // Search and check use the odometry, not the corrected poses: a wrong loop accepted for a while
+  // must not steer the search toward its own family of matches.
+  const Rigid3d& cur_pose = current.odometry;
   const Eigen::Vector3d cur_axis =
       (cur_pose.rotation * body_from_cam0_.rotation) * Eigen::Vector3d::UnitZ();
   std::vector<std::pair<double, size_t>> candidates;
@@ -333,7 +348,7 @@ bool LoopCloser::AddKeyframe(const StateEstimate& state, const cv::Mat& left,
     if ((current.t_ns - c.t_ns) * 1e-9 < options_.min_separation_s ||
         since_m < options_.min_separation_m)
       break;  // later keyframes are closer in time and path
-    const Rigid3d pose = c.correction * c.odometry;
+    const Rigid3d& pose = c.odometry;
     const double d = (pose.translation - cur_pose.translation).norm();
     if (d > options_.search_radius_m + options_.search_radius_fraction * since_m) continue;
     const Eigen::Vector3d axis =
@@ -346,58 +361,105 @@ bool LoopCloser::AddKeyframe(const StateEstimate& state, const cv::Mat& left,
     candidates.resize(options_.max_candidates);
   for (const auto& [d, j] : candidates) {
     const Keyframe& c = keyframes_[j];
-    double radius =
+    const double radius =
         options_.search_radius_m + options_.search_radius_fraction * (current.path_m - c.path_m);
-    if (!loops_.empty() && loop_indices_.back().second >= track_first_) {
-      // The odometry chained through the last loop (old o, new n) predicts this one with the
-      // drift over o..c and n..current only.
-      const auto [o, n] = loop_indices_.back();
-      const double chained_m =
-          std::abs(c.path_m - keyframes_[o].path_m) + (current.path_m - keyframes_[n].path_m);
-      radius = std::min(radius,
-                        options_.loop_consistency_m + options_.search_radius_fraction * chained_m);
-    }
-    const Rigid3d predicted = (c.correction * c.odometry).Inverse() * cur_pose;
+    const Rigid3d predicted = c.odometry.Inverse() * cur_pose;
     LoopEdge edge;
     if (!Match(c, current, predicted, radius, &edge)) continue;
     edge.t_old_ns = c.t_ns;
     edge.t_new_ns = current.t_ns;
-    const int inliers = edge.inliers;
-    std::vector<Rigid3d> corrections;  // to undo a rejected loop
-    corrections.reserve(keyframes_.size() - track_first_);
-    for (size_t k = track_first_; k < keyframes_.size(); ++k)
-      corrections.push_back(keyframes_[k].correction);
-    loops_.push_back(edge);
-    loop_indices_.emplace_back(j, cur);
-    Optimize();
-    const double residual_m = LoopResidualM(loops_.size() - 1);
-    if (options_.max_loop_residual_m > 0 && residual_m > options_.max_loop_residual_m) {
-      spdlog::debug(
-          "vio: loop candidate {:.3f} s rejected after the solve: it disagrees with the graph by "
-          "{:.2f} m",
-          c.t_ns * 1e-9, residual_m);
-      loops_.pop_back();
-      loop_indices_.pop_back();
-      for (size_t k = track_first_; k < keyframes_.size(); ++k)
-        keyframes_[k].correction = corrections[k - track_first_];
-      continue;
-    }
-    const Keyframe& now = keyframes_[cur];
-    loops_.back().correction_m =
-        ((now.correction * now.odometry).translation - cur_pose.translation).norm();
-    loops_.back().residual_m = residual_m;
-    spdlog::info(
-        "vio: loop closed at {:.3f} s with the keyframe of {:.3f} s ({} inliers, {:.2f} m "
-        "correction, {:.3f} m residual)",
-        current.t_ns * 1e-9, c.t_ns * 1e-9, inliers, loops_.back().correction_m, residual_m);
-    return true;
+    pending_.push_back({edge, j, cur});
   }
-  return false;
+  if (pending_.empty()) return false;
+  if (last_solve_ns_ && (current.t_ns - *last_solve_ns_) * 1e-9 < options_.min_interval_s)
+    return false;
+  return SolvePending();
+}
+
+bool LoopCloser::SolvePending() {
+  if (pending_.empty()) return false;
+  const size_t cur = keyframes_.size() - 1;
+  const Rigid3d before = keyframes_[cur].correction * keyframes_[cur].odometry;
+  size_t new_from = cur;  // the earliest new keyframe of the pending loops
+  for (const PendingLoop& p : pending_) {
+    new_from = std::min(new_from, p.new_index);
+    loops_.push_back(p.edge);
+    loop_indices_.emplace_back(p.old_index, p.new_index);
+  }
+  const size_t added = pending_.size();
+  pending_.clear();
+  last_solve_ns_ = keyframes_[cur].t_ns;
+  Optimize();
+  // Loops the Cauchy loss down-weighted (wrong matches, e.g. on repeated texture) still disagree
+  // with the solved graph: the worst and every loop within half of it go, and the graph is solved
+  // again, until every loop left agrees within max_loop_residual_m. A loop kept earlier can go
+  // when later ones, seen from nearer, outvote it.
+  size_t dropped = 0, dropped_new = 0;
+  while (options_.max_loop_residual_m > 0) {
+    std::vector<double> residual(loops_.size(), 0.0);
+    double worst = 0;
+    for (size_t e = 0; e < loops_.size(); ++e) {
+      if (loop_indices_[e].first < track_first_) continue;
+      residual[e] = LoopResidualM(e);
+      worst = std::max(worst, residual[e]);
+    }
+    if (worst <= options_.max_loop_residual_m) break;
+    const double limit = std::max(options_.max_loop_residual_m, 0.5 * worst);
+    size_t out = 0;
+    for (size_t e = 0; e < loops_.size(); ++e) {
+      if (residual[e] > limit) {
+        spdlog::debug(
+            "vio: loop {:.3f} s -> {:.3f} s dropped after the solve: it disagrees with the graph "
+            "by {:.2f} m",
+            loops_[e].t_old_ns * 1e-9, loops_[e].t_new_ns * 1e-9, residual[e]);
+        ++dropped;
+        if (loop_indices_[e].second >= new_from) ++dropped_new;
+        continue;
+      }
+      loops_[out] = loops_[e];
+      loop_indices_[out] = loop_indices_[e];
+      ++out;
+    }
+    loops_.resize(out);
+    loop_indices_.resize(out);
+    Optimize();
+  }
+  const Keyframe& now = keyframes_[cur];
+  const double moved_m = ((now.correction * now.odometry).translation - before.translation).norm();
+  for (size_t e = 0; e < loops_.size(); ++e) {
+    if (loop_indices_[e].first < track_first_) continue;
+    loops_[e].residual_m = LoopResidualM(e);
+    const Keyframe& k = keyframes_[loop_indices_[e].second];
+    loops_[e].correction_m =
+        ((k.correction * k.odometry).translation - k.odometry.translation).norm();
+  }
+  const size_t kept_new = added - dropped_new;
+  if (kept_new > 0 || dropped > 0)
+    spdlog::info(
+        "vio: loop closure at {:.3f} s: {} of {} new loop(s) kept, {} dropped in all, {} in the "
+        "graph; the keyframe moved {:.2f} m by this solve, {:.2f} m from the odometry",
+        now.t_ns * 1e-9, kept_new, added, dropped, loops_.size(), moved_m,
+        ((now.correction * now.odometry).translation - now.odometry.translation).norm());
+  return kept_new > 0 || dropped > 0;
+}
+
+bool LoopCloser::Finish() { return SolvePending(); }
+
+void LoopCloser::AddLoop(const LoopEdge& edge) {
+  const auto index = [&](int64_t t_ns) {
+    const auto it = std::lower_bound(keyframes_.begin(), keyframes_.end(), t_ns,
+                                     [](const Keyframe& k, int64_t t) { return k.t_ns < t; });
+    if (it == keyframes_.end() || it->t_ns != t_ns ||
+        static_cast<size_t>(it - keyframes_.begin()) < track_first_)
+      throw Error(fmt::format("loop closure: no keyframe at {} ns in the current track", t_ns));
+    return static_cast<size_t>(it - keyframes_.begin());
+  };
+  pending_.push_back({edge, index(edge.t_old_ns), index(edge.t_new_ns)});
 }
 
 void LoopCloser::Optimize() {
   if (gravity_aligned_) return OptimizeYawAndPosition();
-  std::vector<Rigid3d> poses = TrackPoses();
+  std::vector<Rigid3d> poses = TrackOdometry();
   const size_t n = poses.size();
   std::vector<std::array<double, 4>> q(n);  // x y z w (Eigen's storage)
   std::vector<std::array<double, 3>> t(n);
@@ -429,7 +491,7 @@ void LoopCloser::Optimize() {
 }
 
 void LoopCloser::OptimizeYawAndPosition() {
-  std::vector<Rigid3d> poses = TrackPoses();
+  std::vector<Rigid3d> poses = TrackOdometry();
   const size_t n = poses.size();
   std::vector<Eigen::Quaterniond> base(n);
   std::vector<double> yaw(n, 0.0);
@@ -458,10 +520,9 @@ void LoopCloser::OptimizeYawAndPosition() {
   SetTrackPoses(poses);
 }
 
-std::vector<Rigid3d> LoopCloser::TrackPoses() const {
+std::vector<Rigid3d> LoopCloser::TrackOdometry() const {
   std::vector<Rigid3d> poses;
-  for (size_t k = track_first_; k < keyframes_.size(); ++k)
-    poses.push_back(keyframes_[k].correction * keyframes_[k].odometry);
+  for (size_t k = track_first_; k < keyframes_.size(); ++k) poses.push_back(keyframes_[k].odometry);
   return poses;
 }
 
@@ -500,6 +561,8 @@ double LoopCloser::LoopResidualM(size_t e) const {
 }
 
 void LoopCloser::NewTrack(int64_t t_ns) {
+  SolvePending();
+  last_solve_ns_.reset();
   ++track_;
   track_starts_ns_.push_back(t_ns);
   track_first_ = keyframes_.size();

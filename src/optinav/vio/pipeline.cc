@@ -190,6 +190,10 @@ VioRunResult RunOnPairs(const camera::StereoRig& rig, const Rigid3d& body_from_c
         [&] { estimator.CancelFeedbackWait(); });
   }
   estimator.Finish();
+  if (closer) {  // the loops verified since the last solve
+    ScopedTimer timer(loop_timing, "loop_closure.finish");
+    closer->Finish();
+  }
   result.lost = estimator.lost_intervals();
   result.initializations = estimator.initializations();
   result.frozen_frames = estimator.frozen_frames();

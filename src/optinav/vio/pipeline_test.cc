@@ -615,7 +615,6 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(fl.pnp_px, dl.pnp_px);
   EXPECT_EQ(fl.min_inliers, dl.min_inliers);
   EXPECT_EQ(fl.min_interval_s, dl.min_interval_s);
-  EXPECT_EQ(fl.loop_consistency_m, dl.loop_consistency_m);
   EXPECT_EQ(fl.odometry_sigma_m_per_m, dl.odometry_sigma_m_per_m);
   EXPECT_EQ(fl.odometry_min_sigma_m, dl.odometry_min_sigma_m);
   EXPECT_EQ(fl.odometry_sigma_rad_per_m, dl.odometry_sigma_rad_per_m);

@@ -10,13 +10,16 @@
 // meet the epipolar constraint within `stereo_epipolar_px` are triangulated into 3D points of the
 // left camera frame.
 // Detection, at each keyframe: earlier keyframes of the same track at least `min_separation_s`
-// and `min_separation_m` of path back, whose corrected position lies within
-// `search_radius_m + search_radius_fraction * path since them` of the current corrected
-// position and whose optical axis is within `max_view_angle_deg` of the current one, nearest
+// and `min_separation_m` of path back, whose odometry position lies within
+// `search_radius_m + search_radius_fraction * path since them` of the current one (the
+// odometry's, not the corrected: a wrong loop kept for a while must not steer the search) and
+// whose optical axis is within `max_view_angle_deg` of the current one, nearest
 // first (at most `max_candidates`): their 3D points against the current left features (Hamming,
-// ratio test), PnP RANSAC (`pnp_px`), refined on the inliers. A loop is accepted with at least
-// `min_inliers` inliers and a relative pose that agrees with the corrected odometry within the
-// search radius and the view angle.
+// ratio test), PnP RANSAC (`pnp_px`), refined on the inliers. A loop is verified with at least
+// `min_inliers` inliers and a relative pose that agrees with the odometry within the
+// search radius and the view angle. Verified loops wait up to `min_interval_s` and enter the
+// graph together; after each solve the loops (old and new) that still disagree with the graph
+// by more than `max_loop_residual_m` are dropped and the graph solved again.
 // Pose graph (Ceres): one pose per keyframe of the track; odometry edges between consecutive
 // keyframes (sigma growing with the distance between them) and loop edges (tighter, Cauchy loss);
 // the track's first keyframe is held fixed. Without an IMU all 6 degrees of freedom are free.
@@ -27,6 +30,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -66,10 +70,9 @@ struct LoopClosureOptions {
   double match_ratio = 0.8;  // Lowe's ratio test
   double pnp_px = 2.0;       // PnP RANSAC threshold, pixels
   int min_inliers = 25;
-  double min_interval_s = 1.0;  // between two accepted loops
-  // After a loop, a new one must agree with the odometry chained through the last loop within
-  // this + search_radius_fraction x the chained path (the search radius alone allows metres).
-  double loop_consistency_m = 0.5;
+  // Between two pose-graph solves: verified loops wait and enter the graph together (all that
+  // were found in this time), so no single loop decides alone.
+  double min_interval_s = 1.0;
   // Pose-graph sigmas: odometry per metre between keyframes (with floors), loop edges. The
   // odometry sigmas must allow the drift stereo odometry really has (about 1 % of the distance
   // on the car route): tighter ones make a correct loop of several metres look like an outlier
@@ -80,9 +83,11 @@ struct LoopClosureOptions {
   double odometry_min_sigma_rad = 0.001;
   double loop_sigma_m = 0.05;
   double loop_sigma_rad = 0.005;
-  // After the solve, a loop edge whose translation still disagrees with the graph by more than
-  // this is an outlier the Cauchy loss has down-weighted (a wrong match on repeated texture): it
-  // is removed and the graph solved again without it. 0: keep every verified loop.
+  // After each solve, loop edges whose translation still disagrees with the graph by more than
+  // this are outliers the Cauchy loss has down-weighted (wrong matches on repeated texture, loops
+  // seen from far): the worst and every one within half of it are removed and the graph solved
+  // again, until all agree. Earlier loops are judged again with each solve, so later, nearer
+  // loops can outvote them. 0: keep every verified loop.
   double max_loop_residual_m = 1.0;
   // Feature position noise (pixels) behind each loop's own sigmas: the PnP pose's covariance
   // from its inliers, each a stereo point whose depth noise grows with the square of its depth
@@ -99,8 +104,10 @@ struct LoopEdge {
   int64_t t_old_ns = 0, t_new_ns = 0;  // the two keyframes
   Rigid3d old_body_from_new_body;      // measured
   int inliers = 0;
-  double correction_m = 0;  // how far the loop moved the new keyframe
-  double residual_m = 0;    // the edge's translation disagreement after the solve
+  // After the last solve: how far the graph moved the new keyframe from the odometry, and the
+  // edge's translation disagreement with the graph.
+  double correction_m = 0;
+  double residual_m = 0;
   // The PnP pose's standard deviations (largest axis; point_sigma_px), 0 when not computed.
   double sigma_m = 0, sigma_rad = 0;
 };
@@ -129,6 +136,14 @@ class LoopCloser {
   // A new track starts at `t_ns` (after a re-initialisation: another world frame). Earlier
   // keyframes keep their corrections but are no longer searched or optimised.
   void NewTrack(int64_t t_ns);
+  // A loop measured elsewhere (another place recogniser, a test) between two keyframes of the
+  // current track already added (`t_old_ns`, `t_new_ns`, `old_body_from_new_body` and the
+  // sigmas of `edge`; 0 sigmas: loop_sigma_m / loop_sigma_rad). It waits for the next solve as a
+  // verified loop does. Throws when a keyframe time is unknown or not of the current track.
+  void AddLoop(const LoopEdge& edge);
+  // The end of the data: loops still waiting for the next solve go into the graph. Returns true
+  // when the corrections changed.
+  bool Finish();
   // world_corrected_from_world for a frame at `t_ns`: that of the track's last keyframe at or
   // before it (identity before the track's first keyframe).
   Rigid3d CorrectionAt(int64_t t_ns) const;
@@ -154,11 +169,14 @@ class LoopCloser {
   // The relative pose cand_body_from_cur_body from matches, or false.
   bool Match(const Keyframe& candidate, const Keyframe& current, const Rigid3d& predicted,
              double radius_m, LoopEdge* edge) const;
+  // Adds the waiting loops, solves, and drops the loops that disagree with the solved graph.
+  bool SolvePending();
   void Optimize();
   void OptimizeYawAndPosition();  // the 4-DoF graph
-  // The current track's keyframe poses with their corrections, and back (the solved poses
-  // become corrections of the odometry).
-  std::vector<Rigid3d> TrackPoses() const;
+  // The current track's keyframe odometry, where every solve starts (not from the last
+  // solution: the result does not depend on the order the loops came in, and a wrong loop kept
+  // for a while leaves no basin behind), and back (the solved poses become corrections).
+  std::vector<Rigid3d> TrackOdometry() const;
   void SetTrackPoses(const std::vector<Rigid3d>& poses);
   // The track's odometry edges (consecutive keyframes) and loop edges, as (i, j, i_from_j,
   // sigma_m, sigma_rad, loss) with i, j indices from the track's first keyframe.
@@ -177,6 +195,12 @@ class LoopCloser {
   std::vector<Keyframe> keyframes_;
   std::vector<LoopEdge> loops_;
   std::vector<std::pair<size_t, size_t>> loop_indices_;  // into keyframes_, with loops_
+  struct PendingLoop {
+    LoopEdge edge;
+    size_t old_index = 0, new_index = 0;  // into keyframes_
+  };
+  std::vector<PendingLoop> pending_;      // verified, waiting for the next solve
+  std::optional<int64_t> last_solve_ns_;  // of the track
   TimingStats* timing_ = nullptr;
   int track_ = 0;
   std::vector<int64_t> track_starts_ns_;  // of tracks 1, 2, ... (track 0 starts first)
