@@ -333,7 +333,7 @@ void WriteWeatherPlot(const std::string& stem, const WeatherBenchOptions& option
   for (const auto& w : worlds) max_conditions = std::max(max_conditions, w.second.size());
   const double bars = options.modes.size() + 1;
   const double group = std::max({36.0, 13.0 * bars + 10, 480.0 / max_conditions});
-  const double left = 60, right = 20, panel_h = 340, plot_h = 220;
+  const double left = 60, right = 20, panel_h = 375, plot_h = 220;  // room for "road-wetness:100"
   const int width = static_cast<int>(std::max(580.0, left + right + group * max_conditions));
   const int height = static_cast<int>(50 + panel_h * worlds.size());
   Canvas cv(width, height);
