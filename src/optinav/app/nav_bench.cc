@@ -83,7 +83,22 @@ struct Flight {
   std::string name;  // flight1, flight1_fog50
   std::string dir;
   double speed_m_s = 20;
+  Eigen::Vector2d wind_m_s = Eigen::Vector2d::Zero();  // east, north
 };
+
+// Multirotor air drag of the flights (1/s): with the flights' 15-25 m/s and 3-6 m/s of wind the
+// drone leans up to about 15 deg into its air speed (SimulationOptions::drag_per_s).
+constexpr double kFlightDragPerS = 0.1;
+
+// The largest tilt (body z from the vertical, deg) of a rendered flight's ground truth.
+double MaxTiltDeg(const std::string& flight_dir) {
+  const Trajectory gt =
+      io::ReadTrajectory(flight_dir + "/mav0/state_groundtruth_estimate0/data.csv");
+  double worst = 0;
+  for (const Eigen::Matrix3d& r : gt.rotations)
+    worst = std::max(worst, std::acos(std::clamp(r(2, 2), -1.0, 1.0)) * 180 / M_PI);
+  return worst;
+}
 
 // Renders a flight unless complete (reuse).
 void RenderFlight(const NavBenchOptions& o, const std::string& waypoints, const Flight& f, bool fog,
@@ -94,6 +109,8 @@ void RenderFlight(const NavBenchOptions& o, const std::string& waypoints, const 
   s.world.ortho_path = o.flight_ortho;
   s.route = "drone:" + waypoints;
   s.speed_m_s = f.speed_m_s;
+  s.drag_per_s = kFlightDragPerS;
+  s.wind_m_s = f.wind_m_s;
   s.scale = 0.25;  // the stereo pair is not used by nav: keep it small
   s.seed = seed;
   s.out_dir = f.dir;
@@ -275,7 +292,7 @@ NavBenchResult RunNavBench(const NavBenchOptions& o,
   // Flights (and their fog versions when asked for).
   const bool want_fog = std::find(o.configs.begin(), o.configs.end(), "fog50") != o.configs.end();
   std::vector<Flight> clear, fog;
-  std::mt19937_64 speed_rng(o.seed);
+  std::mt19937_64 speed_rng(o.seed), wind_rng(o.seed + 7919);
   for (int i = 1; i <= o.flights; ++i) {
     const uint64_t seed = o.seed * 1000 + i;
     const std::string name = fmt::format("flight{}", i);
@@ -285,11 +302,21 @@ NavBenchResult RunNavBench(const NavBenchOptions& o,
       text += fmt::format("{:.1f}, {:.1f}, {:.1f}\n", w.x(), w.y(), w.z());
     io::WriteFileAtomically(waypoints, text);
     const double speed = std::uniform_real_distribution<double>(15, 25)(speed_rng);
-    clear.push_back({name, (flights_dir / name).string(), speed});
+    const double wind_from = std::uniform_real_distribution<double>(0, 2 * M_PI)(wind_rng);
+    const double wind_speed = std::uniform_real_distribution<double>(3, 6)(wind_rng);
+    // Blowing from `wind_from` (clockwise from north, as a wind is named) towards the opposite.
+    const Eigen::Vector2d wind =
+        -wind_speed * Eigen::Vector2d(std::sin(wind_from), std::cos(wind_from));
+    clear.push_back({name, (flights_dir / name).string(), speed, wind});
     RenderFlight(o, waypoints, clear.back(), false, seed);
-    if (progress) progress(fmt::format("rendered {} ({:.0f} m/s)", name, speed));
+    if (progress) {
+      progress(fmt::format(
+          "rendered {} ({:.0f} m/s, wind {:.1f} m/s from {:.0f} deg, tilt up to "
+          "{:.1f} deg)",
+          name, speed, wind_speed, wind_from * 180 / M_PI, MaxTiltDeg(clear.back().dir)));
+    }
     if (want_fog) {
-      fog.push_back({name + "_fog50", (flights_dir / (name + "_fog50")).string(), speed});
+      fog.push_back({name + "_fog50", (flights_dir / (name + "_fog50")).string(), speed, wind});
       RenderFlight(o, waypoints, fog.back(), true, seed);
       if (progress) progress(fmt::format("rendered {}_fog50", name));
     }

@@ -193,7 +193,7 @@ expect_ok "locate list with a Latin-1 name" "$BIN" map locate --map "$WORK/naip.
 # --- Simulator (issue 4): tiny images and short durations keep this fast.
 expect_ok "sim drone euroc with weather and gnss options" "$BIN" sim --world urban --route drone \
   --duration 1 --scale 0.1 --weather fog:50 --gnss-rate 10 --gnss-sigma 0.5 \
-  --gnss-outliers 0.1:20 --gnss-outage 0.2:0.3 --seed 3 --out "$WORK/sim1"
+  --gnss-outliers 0.1:20 --gnss-outage 0.2:0.3 --drag 0.1 --wind 3,-2 --seed 3 --out "$WORK/sim1"
 for f in mav0/cam0/data.csv mav0/cam1/sensor.yaml mav0/imu0/data.csv mav0/gnss0/data.csv \
   mav0/gnss0/llh.csv mav0/state_groundtruth_estimate0/data.csv sim_complete.json; do
   [[ -s "$WORK/sim1/$f" ]] || fail "sim did not write $f"
@@ -224,6 +224,10 @@ expect_error "sim bad nadir size" "--nadir-camera" "$BIN" sim --nadir-camera 640
 expect_error "sim bad nadir fov" "--nadir-hfov" "$BIN" sim --route drone --nadir-hfov 200 \
   --out "$WORK/simx"
 expect_error "sim bad baro" "--baro" "$BIN" sim --baro maybe --out "$WORK/simx"
+expect_error "sim bad wind" "--wind" "$BIN" sim --route drone --wind 3 --out "$WORK/simx"
+expect_error "sim negative drag" "--drag" "$BIN" sim --route drone --drag -1 --out "$WORK/simx"
+expect_error "sim wind on the car" "drone routes only" "$BIN" sim --route car --drag 0.1 \
+  --out "$WORK/simx"
 expect_error "sim unknown world" "unknown world 'mars'" "$BIN" sim --world mars --out "$WORK/simx"
 expect_error "sim unknown weather" "unknown weather 'hail'" "$BIN" sim --weather hail:20 \
   --out "$WORK/simx"

@@ -1,9 +1,11 @@
 // optinav sim: synthetic stereo + IMU + GNSS sequences with weather, in EuRoC or AirSim format
 // (issue 4). `optinav sim suite` writes the weather suite: 36 sequences, 24 urban and 12 terrain.
 #include <cstdio>
+#include <sstream>
 #include <tuple>
 
 #include <CLI/CLI.hpp>
+#include <Eigen/Core>
 #include <fmt/format.h>
 
 #include "optinav/app/sim_suite.h"
@@ -26,7 +28,20 @@ struct SimFlags {
   std::vector<std::string> gnss_outages;
   std::string nadir_camera = "auto", baro = "auto";
   double nadir_hfov = 90, nadir_rate = 5;
+  double drag = 0;
+  std::string wind = "0,0";
 };
+
+// "E,N" in m/s.
+Eigen::Vector2d ParseWind(const std::string& spec) {
+  double e = 0, n = 0;
+  char comma = 0, extra = 0;
+  std::istringstream in(spec);
+  if (!(in >> e >> comma >> n) || comma != ',' || (in >> extra)) {
+    throw cli::UsageError(fmt::format("'{}' is not EAST,NORTH in m/s (e.g. 3,-2)", spec), "--wind");
+  }
+  return {e, n};
+}
 
 // "auto" (on for drone routes), "off", or WxH.
 void ParseNadirCamera(const std::string& spec, bool drone, sim::NadirCameraOptions* o) {
@@ -72,6 +87,8 @@ sim::SimulationOptions ToOptions(const SimFlags& f) {
   o.duration_s = f.duration_s;
   o.speed_m_s = f.speed;
   o.altitude_m = f.altitude;
+  o.drag_per_s = f.drag;
+  o.wind_m_s = ParseWind(f.wind);
   o.scale = f.scale;
   o.seed = f.seed;
   o.gnss.rate_hz = f.gnss_rate;
@@ -114,6 +131,11 @@ void AddSimFlags(CLI::App& app, SimFlags& f) {
   AddCommonFlags(app, f);
   app.add_option("--speed", f.speed, "drone speed (m/s)")->capture_default_str();
   app.add_option("--altitude", f.altitude, "drone altitude above ground (m)")
+      ->capture_default_str();
+  app.add_option("--drag", f.drag,
+                 "drone air drag (1/s; 0: none): the drone leans into its air speed and the wind")
+      ->capture_default_str();
+  app.add_option("--wind", f.wind, "steady wind EAST,NORTH (m/s; drone routes, with --drag)")
       ->capture_default_str();
   app.add_option("--gnss-rate", f.gnss_rate, "GNSS rate (Hz)")->capture_default_str();
   app.add_option("--gnss-sigma", f.gnss_sigma, "GNSS noise sigma per axis (m)")

@@ -1292,8 +1292,8 @@ LocateResult Locator::CorrelationOn(const PreparedFrame& pf, const Prior& prior)
       std::clamp(std::max(peak_ratio - 1.0,
                           confirmed ? verified / (2.0 * im.options.oc_min_block_inliers) : 0),
                  0.0, 1.0);
-  if (!confirmed &&
-      (global || im.options.oc_require_blocks || peak_ratio < im.options.oc_min_peak_ratio)) {
+  if (!confirmed && (global || im.options.oc_require_blocks || prior.require_confirmed ||
+                     peak_ratio < im.options.oc_min_peak_ratio)) {
     r.times.estimation_ms = stage.ElapsedSeconds() * 1e3;
     return a.Fail(
         global ? fmt::format("no place confirmed: {} consistent block matches (need {} and twice "

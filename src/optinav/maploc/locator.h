@@ -52,6 +52,10 @@ struct Prior {
   // assumed for the search, estimated by the features method.
   std::optional<double> roll_deg, pitch_deg;
   double attitude_sigma_deg = 1.5;  // 1-sigma error of roll and pitch
+  // The orientation correlation must confirm the place by its blocks even with a position
+  // (LocateOptions::oc_require_blocks for this call): for a fix that is to confirm another one,
+  // where a distinct peak near a wrong position would only echo it.
+  bool require_confirmed = false;
 };
 
 struct LocateOptions {

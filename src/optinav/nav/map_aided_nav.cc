@@ -529,6 +529,9 @@ struct MapAidedNavigator::Impl {
       prior.radius_m = options.init_confirm_m + 40.0 * dt;
       prior.heading_deg = fix_attitude[2];
       prior.heading_sigma_deg = 20;
+      // Confirmed by the blocks, as the global fix was: a search around a wrong candidate (a
+      // wrong fix) finds a distinct-enough correlation peak there and would confirm it.
+      prior.require_confirmed = true;
     }
     if (!prior.position) {
       // A global search costs seconds: at most one per global_search_interval_s of flight, as a

@@ -97,7 +97,7 @@ struct ImageJob {
   cv::Mat image;
 };
 
-BodyTrajectory MakeRoute(const SimulationOptions& o, const World& world) {
+BodyTrajectory MakeRouteWithoutDrag(const SimulationOptions& o, const World& world) {
   if (o.route == "car") {
     return MakeCarTrajectory(
         world.kind == WorldKind::kTerrain ? CarRouteOptions::Terrain() : CarRouteOptions::Urban(),
@@ -128,6 +128,13 @@ BodyTrajectory MakeRoute(const SimulationOptions& o, const World& world) {
   } catch (const Error& e) {
     throw Error(e.message(), {.file = file});
   }
+}
+
+BodyTrajectory MakeRoute(const SimulationOptions& o, const World& world) {
+  BodyTrajectory t = MakeRouteWithoutDrag(o, world);
+  if (o.route != "car")
+    t.SetAirDrag(o.drag_per_s, Eigen::Vector3d(o.wind_m_s.x(), o.wind_m_s.y(), 0));
+  return t;
 }
 
 std::string FormatName(DatasetFormat f) { return f == DatasetFormat::kEuroc ? "euroc" : "airsim"; }
@@ -166,6 +173,13 @@ std::string SimulationOptions::Check() const {
   if (!(altitude_m > 0 && altitude_m <= 5000)) {
     return fmt::format("--altitude {} m not in (0, 5000]", altitude_m);
   }
+  if (!(drag_per_s >= 0 && drag_per_s <= 2))
+    return fmt::format("--drag {} 1/s not in [0, 2]", drag_per_s);
+  if (!(wind_m_s.allFinite() && wind_m_s.norm() <= 40))
+    return fmt::format("--wind {},{} m/s: must be finite, at most 40 m/s", wind_m_s.x(),
+                       wind_m_s.y());
+  if (route == "car" && (drag_per_s > 0 || !wind_m_s.isZero()))
+    return "--drag and --wind apply to drone routes only";
   if (route != "car" && route != "drone" && !(route.rfind("drone:", 0) == 0 && route.size() > 6)) {
     return fmt::format("--route '{}' must be car, drone or drone:FILE", route);
   }
@@ -450,6 +464,8 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
   if (drone) {
     j["speed_m_s"] = options.speed_m_s;
     j["altitude_m"] = options.altitude_m;
+    j["drag_per_s"] = options.drag_per_s;
+    j["wind_m_s"] = {options.wind_m_s.x(), options.wind_m_s.y()};
   }
   // Every data file is in place: the folder stops being refused by the readers, then the marker
   // tells the next run and the benchmarks that it is complete.

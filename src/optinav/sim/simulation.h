@@ -34,8 +34,13 @@ struct SimulationOptions {
   std::string out_dir;
   double speed_m_s = 5.0;    // drone routes
   double altitude_m = 20.0;  // drone routes, above ground
-  double scale = 1.0;        // image size factor (intrinsics follow)
-  bool force = false;        // clear a non-empty out_dir
+  // Drone routes: air drag (1/s; 0: none) and a steady wind (m/s, east and north): the drone
+  // leans into its air speed (BodyTrajectory::SetAirDrag). 0.1 and 4 m/s tilt a drone flying
+  // 25 m/s into the wind by 16 deg.
+  double drag_per_s = 0.0;
+  Eigen::Vector2d wind_m_s = Eigen::Vector2d::Zero();
+  double scale = 1.0;  // image size factor (intrinsics follow)
+  bool force = false;  // clear a non-empty out_dir
   ImuOptions imu;
   GnssOptions gnss;
   BaroOptions baro;              // baro0/ when enabled

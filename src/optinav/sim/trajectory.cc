@@ -79,14 +79,27 @@ BodyState BodyTrajectory::At(int64_t t_ns) const {
   s.acceleration_in_world = position_.Evaluate(t, 2);
   Eigen::Matrix3d r;
   if (model_ == Attitude::kThrustAligned) {
-    ThrustAligned(s.acceleration_in_world, position_.Evaluate(t, 3), attitude_.Evaluate(t, 0)[0],
-                  attitude_.Evaluate(t, 1)[0], &r, &s.angular_velocity_in_body);
+    // The thrust balances gravity, the acceleration and the drag -k (v - wind) (constant wind:
+    // its rate is k a).
+    ThrustAligned(s.acceleration_in_world + drag_per_s_ * (s.velocity_in_world - wind_in_world_),
+                  position_.Evaluate(t, 3) + drag_per_s_ * s.acceleration_in_world,
+                  attitude_.Evaluate(t, 0)[0], attitude_.Evaluate(t, 1)[0], &r,
+                  &s.angular_velocity_in_body);
   } else {
     YawPitchRoll(attitude_.Evaluate(t, 0), attitude_.Evaluate(t, 1), &r,
                  &s.angular_velocity_in_body);
   }
   s.world_from_body.rotation = Eigen::Quaterniond(r).normalized();
   return s;
+}
+
+void BodyTrajectory::SetAirDrag(double drag_per_s, const Eigen::Vector3d& wind_in_world) {
+  OPTINAV_CHECK_MSG(std::isfinite(drag_per_s) && drag_per_s >= 0 && wind_in_world.allFinite(),
+                    "air drag must be finite and >= 0, the wind finite");
+  OPTINAV_CHECK_MSG(model_ == Attitude::kThrustAligned || drag_per_s == 0,
+                    "air drag applies to thrust-aligned (drone) trajectories only");
+  drag_per_s_ = drag_per_s;
+  wind_in_world_ = wind_in_world;
 }
 
 double BodyTrajectory::PathLength(double step_s) const {

@@ -4,7 +4,8 @@
 // is x forward, y left, z up (the IMU frame). A trajectory is a quintic spline of the position
 // (C4) plus an attitude model:
 //  - thrust-aligned (drones): body z along the specific force a + g, body x towards a yaw
-//    given by its own spline: a multirotor tilts as it accelerates;
+//    given by its own spline: a multirotor tilts as it accelerates (and, with air drag, into
+//    its air speed and the wind: SetAirDrag);
 //  - yaw-pitch-roll (cars): R = Rz(yaw) Ry(pitch) Rx(roll), each angle a spline.
 // Velocity, acceleration and the body angular velocity come from the spline derivatives
 // in closed form (the angular velocity of the thrust-aligned model needs the jerk), so IMU
@@ -55,6 +56,13 @@ class BodyTrajectory {
   // Length of the path sampled every `step_s` seconds.
   double PathLength(double step_s = 0.05) const;
 
+  // Air drag of a multirotor (thrust-aligned routes only): a drag force -m k (v - wind) that the
+  // thrust must balance too, so body z lies along a + g e_z + k (v - wind) and the vehicle leans
+  // into its air speed and the wind as a real one does (k = `drag_per_s`, 1/s; 0: no drag, body
+  // z along a + g e_z). The accelerometer still measures a + g e_z, the drag being a force it
+  // feels: only the attitude (and with it the angular velocity) changes.
+  void SetAirDrag(double drag_per_s, const Eigen::Vector3d& wind_in_world);
+
   // Car routes carry the commands that drove them, sampled every controls_dt_s from start.
   void SetControls(std::vector<CarControls> controls, double dt_s);
   std::optional<CarControls> ControlsAt(int64_t t_ns) const;
@@ -63,6 +71,8 @@ class BodyTrajectory {
   QuinticSpline position_, attitude_;
   Attitude model_;
   int64_t start_ns_;
+  double drag_per_s_ = 0;
+  Eigen::Vector3d wind_in_world_ = Eigen::Vector3d::Zero();
   std::vector<CarControls> controls_;
   double controls_dt_s_ = 0;
 };

@@ -75,6 +75,35 @@ TEST(Trajectory, AnalyticDerivativesMatchFiniteDifferences) {
   CheckDerivatives(MakeCarTrajectory(CarRouteOptions::Terrain(), hills, kStart), "car");
 }
 
+// Air drag and wind: the angular velocity stays exact (the thrust direction's rate takes the
+// drag's), and at a steady velocity the drone leans into its air speed by atan(k |v - w| / g).
+TEST(Trajectory, AirDragLeansTheDroneIntoItsAirSpeed) {
+  BodyTrajectory drag = AggressiveFlight();
+  drag.SetAirDrag(0.1, Eigen::Vector3d(3, -4, 0));
+  CheckDerivatives(drag, "drone with drag and wind");
+  // The middle of a straight, level 180 m leg east (9.3 m/s there, not accelerating), a 5 m/s
+  // wind from the east (towards the west): air speed 14.3 m/s, tilt atan(1.43 / 9.81) = 8.3
+  // deg, body z leaning east; without drag it flies level.
+  std::vector<DroneWaypoint> wps(4);
+  for (int i = 0; i < 4; ++i) wps[i].position_in_world = Eigen::Vector3d(60.0 * i, 0, 10);
+  BodyTrajectory leg = MakeDroneTrajectory(wps, 12.0, kStart);
+  const int64_t mid = (leg.start_ns() + leg.end_ns()) / 2;
+  const Eigen::Vector3d still_z = leg.At(mid).world_from_body.rotation * Eigen::Vector3d::UnitZ();
+  leg.SetAirDrag(0.1, Eigen::Vector3d(-5, 0, 0));
+  const BodyState s = leg.At(mid);
+  const Eigen::Vector3d z = s.world_from_body.rotation * Eigen::Vector3d::UnitZ();
+  const double expected =
+      std::atan(0.1 * (s.velocity_in_world - Eigen::Vector3d(-5, 0, 0)).norm() / kGravity);
+  std::printf(
+      "mid-leg at %.2f m/s into a 5 m/s wind: tilt %.3f deg (expected %.3f), %.3f "
+      "deg without drag\n",
+      s.velocity_in_world.norm(), std::acos(z.z()) * 180 / M_PI, expected * 180 / M_PI,
+      std::acos(still_z.z()) * 180 / M_PI);
+  EXPECT_NEAR(std::acos(z.z()), expected, 2e-3);
+  EXPECT_GT(z.x(), 0.1) << "leans forward, into its air speed";
+  EXPECT_LT(std::acos(still_z.z()), 0.01);
+}
+
 // Integrates noise-free IMU samples with RK4 (mid-step values by 4-point cubic interpolation)
 // from the true initial state and compares with the ground truth.
 TEST(Trajectory, IntegratingNoiseFreeImuReproducesGroundTruth) {
