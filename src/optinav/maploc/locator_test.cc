@@ -180,6 +180,19 @@ class NaipMap : public testmaps::Naip2009MapTest {
     std::vector<double> errors;
   };
 
+  // A 256x256 frame at 5 m/px, random heading and position (away from the image's border).
+  static FrameSpec RandomFrame(const geo::GeoRaster& flight, std::mt19937& rng) {
+    std::uniform_real_distribution<double> u01(0, 1);
+    FrameSpec s;
+    s.width = s.height = 256;
+    s.gsd_m = 5.0;
+    s.heading_deg = 360 * u01(rng);
+    const double reach = 182;
+    s.centre_px = {reach + (flight.width() - 2 * reach) * u01(rng),
+                   reach + (flight.height() - 2 * reach) * u01(rng)};
+    return s;
+  }
+
   // Frames cut from `year` at random positions and headings; the prior position is within
   // 250 m, the heading (if given) within +-8 deg. Truth goes through each raster's own
   // geotransform (the yearly images' origins differ by about 1 m).
@@ -193,13 +206,7 @@ class NaipMap : public testmaps::Naip2009MapTest {
     std::uniform_real_distribution<double> u01(0, 1);
     Outcome out;
     for (int i = 0; i < frames; ++i) {
-      FrameSpec s;
-      s.width = s.height = 256;
-      s.gsd_m = 5.0;
-      s.heading_deg = 360 * u01(rng);
-      const double reach = 182;
-      s.centre_px = {reach + (flight.width() - 2 * reach) * u01(rng),
-                     reach + (flight.height() - 2 * reach) * u01(rng)};
+      const FrameSpec s = RandomFrame(flight, rng);
       const cv::Mat frame = SynthesizeFrame(flight, 5.0, s);
       const Eigen::Vector2d truth_crs = flight.transform().PixelToCrs(s.centre_px);
       Prior prior;
@@ -260,13 +267,7 @@ TEST_F(NaipMap, AConfirmingSearchNeedsTheBlocks) {
   const geo::CrsTransform crs(db_->crs_wkt);
   int frames = 0, wrong_loose = 0, wrong_strict = 0, right_strict = 0;
   for (int i = 0; i < 20; ++i) {
-    FrameSpec s;
-    s.width = s.height = 256;
-    s.gsd_m = 5.0;
-    s.heading_deg = 360 * u01(rng);
-    const double reach = 182;
-    s.centre_px = {reach + (flight.width() - 2 * reach) * u01(rng),
-                   reach + (flight.height() - 2 * reach) * u01(rng)};
+    const FrameSpec s = RandomFrame(flight, rng);
     const cv::Mat frame = SynthesizeFrame(flight, 5.0, s);
     const Eigen::Vector2d truth_crs = flight.transform().PixelToCrs(s.centre_px);
     const double a = 2 * M_PI * u01(rng);
