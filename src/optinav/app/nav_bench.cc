@@ -87,7 +87,8 @@ struct Flight {
 };
 
 // Multirotor air drag of the flights (1/s): with the flights' 15-25 m/s and 3-6 m/s of wind the
-// drone leans up to about 15 deg into its air speed (SimulationOptions::drag_per_s).
+// drone leans 9-13 deg (median) into its air speed, up to 16-20 deg on the fastest stretches
+// (bench/RESULTS.md, 2026-11-29; SimulationOptions::drag_per_s).
 constexpr double kFlightDragPerS = 0.1;
 
 // The largest tilt (body z from the vertical, deg) of a rendered flight's ground truth.
