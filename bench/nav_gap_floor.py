@@ -8,8 +8,17 @@ its end: what a perfect estimator would carry out of the gap with this IMU and n
 (the random walks of the biases during the gap, nothing else). Times are relative to the first
 nadir frame (mav0/cam2), as `optinav nav --blank START:DURATION` counts them.
 
-usage: bench/nav_gap_floor.py FLIGHT_DIR START_S [DURATION_S=60]   (needs python3-numpy)
+With --drag (flights simulated with air drag, `optinav sim --drag K --wind E,N`; K and the wind
+are read from sim_complete.json) it also prints what the accelerometer's drag adds: the
+horizontal specific force, minus the accelerometer bias, is -K R^T (v - wind) in the body frame,
+so each sample gives the air velocity; the position is integrated from that velocity (turned by
+the IMU-propagated attitude, plus the wind known at the start) instead of from the integrated
+acceleration. A first look at what a drag factor in the estimator could reach (the bias and the
+wind held at their start values, as above).
+
+usage: bench/nav_gap_floor.py FLIGHT_DIR START_S [DURATION_S=60] [--drag]   (needs python3-numpy)
 """
+import json
 import sys
 
 import numpy as np
@@ -33,10 +42,12 @@ def exp_so3(w):
 
 
 def main():
-    if len(sys.argv) < 3:
+    args = [a for a in sys.argv[1:] if a != '--drag']
+    with_drag = '--drag' in sys.argv[1:]
+    if len(args) < 2:
         sys.exit(__doc__)
-    d, start = sys.argv[1], float(sys.argv[2])
-    duration = float(sys.argv[3]) if len(sys.argv) > 3 else 60.0
+    d, start = args[0], float(args[1])
+    duration = float(args[2]) if len(args) > 2 else 60.0
     gt = np.loadtxt(d + '/mav0/state_groundtruth_estimate0/data.csv', delimiter=',', comments='#')
     imu = np.loadtxt(d + '/mav0/imu0/data.csv', delimiter=',', comments='#')
     first = int(open(d + '/mav0/cam2/data.csv').readlines()[1].split(',')[0])
@@ -45,16 +56,34 @@ def main():
         sys.exit(f'{d}: the gap ends after the IMU data')
     g = gt[np.searchsorted(gt[:, 0], t0)]
     p, r, v, bw, ba = g[1:4].copy(), rot(g[4:8]), g[8:11].copy(), g[11:14], g[14:17]
+    k_drag, wind = 0.0, np.zeros(3)
+    if with_drag:
+        meta = json.load(open(d + '/sim_complete.json'))
+        k_drag = float(meta.get('drag_per_s', 0.0))
+        wind[:2] = meta.get('wind_m_s', [0.0, 0.0])
+        if k_drag <= 0:
+            sys.exit(f'{d}: simulated without drag (sim_complete.json drag_per_s)')
+    p_drag = p.copy()
     j = np.searchsorted(imu[:, 0], g[0])
     while imu[j + 1, 0] <= t1:  # trapezoidal in the rotation and the specific force
         dt = (imu[j + 1, 0] - imu[j, 0]) * 1e-9
         rn = r @ exp_so3(0.5 * (imu[j, 1:4] + imu[j + 1, 1:4] - 2 * bw) * dt)
         acc = 0.5 * (r @ (imu[j, 4:7] - ba) + rn @ (imu[j + 1, 4:7] - ba)) + G
+        if with_drag:
+            # Air velocity in the body frame from the drag: x and y from the specific force, z
+            # (along the thrust, where the drag is not seen) from the integrated velocity.
+            v_body = r.T @ (v - wind)
+            v_body[:2] = -(imu[j, 4:6] - ba[:2]) / k_drag
+            p_drag = p_drag + (r @ v_body + wind) * dt
         p, v, r = p + v * dt + 0.5 * acc * dt * dt, v + acc * dt, rn
         j += 1
-    e = p - gt[np.searchsorted(gt[:, 0], imu[j, 0]), 1:4]
+    truth = gt[np.searchsorted(gt[:, 0], imu[j, 0]), 1:4]
+    e = p - truth
     print(f'{d}: gap {start:g}-{start + duration:g} s, IMU only from the true state: '
           f'{np.linalg.norm(e[:2]):.1f} m horizontal at its end')
+    if with_drag:
+        print(f'{d}: with the drag (K {k_drag:g} 1/s, wind {wind[0]:g},{wind[1]:g} m/s) as the '
+              f'horizontal velocity: {np.linalg.norm((p_drag - truth)[:2]):.1f} m')
 
 
 if __name__ == '__main__':
