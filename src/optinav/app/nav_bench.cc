@@ -136,6 +136,7 @@ NavBenchRun RunOne(const NavBenchOptions& o, const std::string& map_path, const 
   st.dataset = flight.dir;
   st.map_path = map_path;
   st.nav.fix_rate_hz = o.fix_rate_hz;
+  st.nav.drag_per_s = o.drag ? kFlightDragPerS : 0.0;  // the drones' calibrated drag
   const std::string stem = (runs_dir / (flight.name + "_" + config)).string();
   st.out = stem + ".tum";
   st.stats_path = stem + ".json";

@@ -35,6 +35,7 @@ struct NavBenchOptions {
   int jobs = 1;        // runs in parallel
   bool reuse = false;  // keep rendered flights and finished runs
   double fix_rate_hz = 1.0;
+  bool drag = false;          // the navigator uses the drones' rotor drag (NavOptions::drag_per_s)
   std::string Check() const;  // "" when valid, else starts with the flag at fault
 };
 

@@ -84,6 +84,15 @@ int RunNav(int argc, char** argv) {
   command.add_option("--blank", blank,
                      "START_S:DURATION_S: blank the nadir frames in that window (no map match "
                      "possible; repeatable)");
+  command
+      .add_option("--drag", st.nav.drag_per_s,
+                  "the multirotor's calibrated rotor drag K (1/s; 0: off): the accelerometer's "
+                  "horizontal specific force -K (v - wind) gives the velocity without texture")
+      ->capture_default_str();
+  command
+      .add_option("--drag-sigma", st.nav.drag_sigma_m_s2,
+                  "sigma of the drag factor (the frame interval's mean specific force, m/s^2)")
+      ->capture_default_str();
   command.add_option("--inject-outliers", st.nav.inject_outlier_fraction,
                      "testing: replace this fraction of the found map fixes by positions "
                      "300-1500 m away (seeded)");
@@ -153,6 +162,8 @@ int RunNavBench(int argc, char** argv) {
       ->capture_default_str();
   command.add_option("--configs", configs,
                      "comma list of map,fog50,gap60,outliers10,no-map,gnss3 (default: all)");
+  command.add_flag("--drag", o.drag,
+                   "the navigator uses the drones' rotor drag (nav --drag with the flights' K)");
   command.add_option("--fix-rate", o.fix_rate_hz, "map fixes tried per second")
       ->capture_default_str();
   command.add_option("--jobs", o.jobs, "runs in parallel")->capture_default_str();

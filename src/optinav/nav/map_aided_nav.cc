@@ -167,6 +167,52 @@ class BaroFactor : public vio::TimedFactor {
   const ceres::LossFunction* loss_;
 };
 
+// Rotor drag: the mean specific force of a frame interval (body x and y), minus the
+// accelerometer bias, against -K R^T (v - wind) at the interval's middle (NavOptions::drag_per_s).
+class DragFunctor {
+ public:
+  DragFunctor(const vio::ImuPreintegration& pre, const Eigen::Vector3d& gravity,
+              const Eigen::Vector2d& specific_force_xy, double drag_per_s, double sigma)
+      : predict_(pre, gravity), f_(specific_force_xy), k_(drag_per_s), inv_sigma_(1.0 / sigma) {}
+  template <typename T>
+  bool operator()(const T* pose, const T* sb, const T* wind, T* residuals) const {
+    using Vec3 = Eigen::Matrix<T, 3, 1>;
+    Vec3 v;
+    Eigen::Quaternion<T> q;
+    predict_(pose, sb, nullptr, &v, &q);
+    const Vec3 air = v - Vec3(wind[0], wind[1], T(0));
+    const Vec3 drag_body = q.conjugate() * (air * T(-k_));
+    residuals[0] = (T(f_.x()) - sb[6] - drag_body[0]) * T(inv_sigma_);
+    residuals[1] = (T(f_.y()) - sb[7] - drag_body[1]) * T(inv_sigma_);
+    return true;
+  }
+
+ private:
+  vio::TimedStatePredictor predict_;
+  Eigen::Vector2d f_;
+  double k_, inv_sigma_;
+};
+
+class DragFactor : public vio::TimedFactor {
+ public:
+  DragFactor(int64_t t_ns, const Eigen::Vector2d& specific_force_xy, double drag_per_s,
+             double sigma, int wind_block)
+      : t_ns_(t_ns), f_(specific_force_xy), k_(drag_per_s), sigma_(sigma), wind_(wind_block) {}
+  int64_t t_ns() const override { return t_ns_; }
+  ceres::CostFunction* Create(const vio::ImuPreintegration& pre, const Eigen::Vector3d& gravity,
+                              bool) const override {
+    return new ceres::AutoDiffCostFunction<DragFunctor, 2, vio::kPoseSize, vio::kSpeedBiasSize, 2>(
+        new DragFunctor(pre, gravity, f_, k_, sigma_));
+  }
+  std::vector<int> global_blocks() const override { return {wind_}; }
+
+ private:
+  int64_t t_ns_;
+  Eigen::Vector2d f_;
+  double k_, sigma_;
+  int wind_;
+};
+
 // The plane-induced homography between consecutive nadir frames as a relative-pose factor.
 // For each of a few pixels c of the current frame and its match H c in the previous one, the
 // horizontal offset from the camera to the ground point (the ray through the pixel, rotated by
@@ -279,6 +325,9 @@ std::string NavOptions::Check() const {
   if (!(fix_yaw_sigma_deg >= 0)) return "fix_yaw_sigma_deg must be >= 0";
   if (!(baro_sigma_m > 0) || !(baro_bias_sigma_m > 0) || !(baro_bias_walk_m_per_sqrt_s >= 0))
     return "barometer sigmas must be > 0 (walk >= 0)";
+  if (!(drag_per_s >= 0) || !(drag_sigma_m_s2 > 0) || !(wind_prior_sigma_m_s > 0) ||
+      !(wind_walk_m_s_per_sqrt_s >= 0))
+    return "drag_per_s must be >= 0, the drag and wind sigmas > 0 (walk >= 0)";
   if (!(odometry_pixel_sigma > 0) || !(odometry_min_velocity_sigma > 0))
     return "odometry sigmas must be > 0";
   if (!(odometry_rotation_sigma_scale >= 0)) return "odometry_rotation_sigma_scale must be >= 0";
@@ -312,6 +361,7 @@ struct MapAidedNavigator::Impl {
   std::unique_ptr<ceres::LossFunction> map_loss, odometry_loss;
   FrameOdometry odometry;
   int bias_block = -1;
+  int wind_block = -1;  // drag_per_s > 0
 
   std::vector<vio::TimedImuSample> imu;
   std::deque<io::BaroSample> baro;
@@ -482,6 +532,12 @@ struct MapAidedNavigator::Impl {
         backend->AddGlobalBlock(Eigen::VectorXd::Constant(1, baro_bias_m),
                                 Eigen::VectorXd::Constant(1, options.baro_bias_sigma_m),
                                 Eigen::VectorXd::Constant(1, options.baro_bias_walk_m_per_sqrt_s));
+    wind_block = -1;
+    if (options.drag_per_s > 0) {
+      wind_block = backend->AddGlobalBlock(
+          Eigen::VectorXd::Zero(2), Eigen::VectorXd::Constant(2, options.wind_prior_sigma_m_s),
+          Eigen::VectorXd::Constant(2, options.wind_walk_m_s_per_sqrt_s));
+    }
     covariance = backend->NewestCovariance();
     stats.initialized_at_ns = stats.initialized_at_ns.value_or(t_ns);
     last_accepted_fix_ns = t_ns;  // the start's position counts as the last fix
@@ -862,6 +918,18 @@ struct MapAidedNavigator::Impl {
         pre.Predict({previous.world_from_body.rotation, previous.world_from_body.translation,
                      previous.velocity},
                     previous.bias, backend_options.gravity);
+    if (wind_block >= 0) {
+      // The interval's mean specific force at its middle (blank frames too: the drag needs no
+      // texture).
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      double span = 0;
+      for (const auto& m : measurements) sum += m.accel * m.dt_s, span += m.dt_s;
+      if (span > 0) {
+        backend->AddTimedFactor(std::make_unique<DragFactor>(
+            previous.t_ns + static_cast<int64_t>(0.5 * span * 1e9), (sum / span).head<2>(),
+            options.drag_per_s, options.drag_sigma_m_s2, wind_block));
+      }
+    }
     // Barometer samples up to the frame.
     while (!baro.empty() && baro.front().t_ns <= t_ns) {
       backend->AddTimedFactor(

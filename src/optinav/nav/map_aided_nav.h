@@ -71,6 +71,19 @@ struct NavOptions {
   double baro_sigma_m = 0.5;
   double baro_bias_sigma_m = 3.0;
   double baro_bias_walk_m_per_sqrt_s = 0.05;
+  // Rotor drag (multirotors; 0: off): the accelerometer feels the air drag, so its horizontal
+  // specific force in the body frame is -K (R^T (v - wind))_xy with K the drone's calibrated
+  // drag per second. With K > 0 every frame interval adds a factor: the interval's mean specific
+  // force minus the accelerometer bias against the drag of the velocity and the wind (a global
+  // block, horizontal, with a prior and a random walk) at the interval's middle. A velocity that
+  // needs no ground texture: what carries a gap (docs/NAV.md).
+  double drag_per_s = 0.0;
+  // The interval's mean, m/s^2: the accelerometer's white noise over 0.2 s (2e-3 / sqrt(0.2) =
+  // 0.0045) plus a little; on bench nav's flight 3 through its gap 0.02 / 0.01 / 0.005 gave
+  // 30.3 / 34.3 / 23.8 m at the gap's end (one run each).
+  double drag_sigma_m_s2 = 0.005;
+  double wind_prior_sigma_m_s = 10.0;
+  double wind_walk_m_s_per_sqrt_s = 0.05;
   // Visual odometry: homography error in pixels (1 sigma, per point; measured about 0.07 px on
   // the simulator's 640x480 frames at 450 m) and the floor of the displacement's sigma as a
   // speed (times the frame interval). On `bench nav`'s flights 2 and 3 the displacement's
