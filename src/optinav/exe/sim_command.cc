@@ -1,7 +1,6 @@
 // optinav sim: synthetic stereo + IMU + GNSS sequences with weather, in EuRoC or AirSim format
 // (issue 4). `optinav sim suite` writes the weather suite: 36 sequences, 24 urban and 12 terrain.
 #include <cstdio>
-#include <sstream>
 #include <tuple>
 
 #include <CLI/CLI.hpp>
@@ -9,6 +8,7 @@
 #include <fmt/format.h>
 
 #include "optinav/app/sim_suite.h"
+#include "optinav/exe/cli_common.h"
 #include "optinav/exe/cli_runner.h"
 #include "optinav/exe/commands.h"
 #include "optinav/sim/simulation.h"
@@ -31,17 +31,6 @@ struct SimFlags {
   double drag = 0;
   std::string wind = "0,0";
 };
-
-// "E,N" in m/s.
-Eigen::Vector2d ParseWind(const std::string& spec) {
-  double e = 0, n = 0;
-  char comma = 0, extra = 0;
-  std::istringstream in(spec);
-  if (!(in >> e >> comma >> n) || comma != ',' || (in >> extra)) {
-    throw cli::UsageError(fmt::format("'{}' is not EAST,NORTH in m/s (e.g. 3,-2)", spec), "--wind");
-  }
-  return {e, n};
-}
 
 // "auto" (on for drone routes), "off", or WxH.
 void ParseNadirCamera(const std::string& spec, bool drone, sim::NadirCameraOptions* o) {
@@ -88,7 +77,8 @@ sim::SimulationOptions ToOptions(const SimFlags& f) {
   o.speed_m_s = f.speed;
   o.altitude_m = f.altitude;
   o.drag_per_s = f.drag;
-  o.wind_m_s = ParseWind(f.wind);
+  const std::vector<double> wind = ParseNumbers(f.wind, 2, "EAST,NORTH in m/s", "--wind");
+  o.wind_m_s = {wind[0], wind[1]};
   o.scale = f.scale;
   o.seed = f.seed;
   o.gnss.rate_hz = f.gnss_rate;
