@@ -4,7 +4,8 @@
 #   scripts/test.sh [CTEST ARGS]             Release build in build/
 #   scripts/test.sh --sanitize [CTEST ARGS]  AddressSanitizer + UndefinedBehaviorSanitizer build in
 #                                            build-asan/ (leak detection on, any report fails the
-#                                            test); every test runs in full
+#                                            test); every test but four accuracy replicas
+#                                            (docs/RELIABILITY.md)
 # OPTINAV_SLURM_TEST=1 also runs scripts/slurm_test.sh after the Release tests: a one-node Slurm
 # cluster on localhost runs a planned sweep and a sharded map build (about a minute; root).
 set -euo pipefail

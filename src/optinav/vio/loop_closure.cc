@@ -42,6 +42,10 @@ std::string LoopClosureOptions::Check() const {
   if (!(max_loop_residual_m >= 0)) return "loop_closure.max_loop_residual_m must be >= 0";
   if (!(point_sigma_px >= 0)) return "loop_closure.point_sigma_px must be >= 0";
   if (!(max_loop_distance_m >= 0)) return "loop_closure.max_loop_distance_m must be >= 0";
+  if (!(support_min_path_m >= 0) || !(support_tolerance_m > 0) ||
+      !(support_tolerance_fraction >= 0) || !(support_max_wait_s >= 0))
+    return "loop_closure.support_min_path_m, support_tolerance_fraction and support_max_wait_s "
+           "must be >= 0, support_tolerance_m > 0";
   return "";
 }
 
@@ -376,18 +380,54 @@ bool LoopCloser::AddKeyframe(const StateEstimate& state, const cv::Mat& left,
   return SolvePending();
 }
 
-bool LoopCloser::SolvePending() {
+bool LoopCloser::Supports(const PendingLoop& a, const PendingLoop& b) const {
+  const Keyframe &new_a = keyframes_[a.new_index], &new_b = keyframes_[b.new_index];
+  if (std::abs(new_b.path_m - new_a.path_m) < options_.support_min_path_m) return false;
+  // new_b in new_a's frame: by the odometry of this pass, and through the two loops and the
+  // odometry of the earlier pass.
+  const Rigid3d odometry = new_a.odometry.Inverse() * new_b.odometry;
+  const Rigid3d via_loops =
+      (keyframes_[a.old_index].odometry * a.edge.old_body_from_new_body).Inverse() *
+      (keyframes_[b.old_index].odometry * b.edge.old_body_from_new_body);
+  return (via_loops.translation - odometry.translation).norm() <=
+         options_.support_tolerance_m +
+             options_.support_tolerance_fraction * odometry.translation.norm();
+}
+
+bool LoopCloser::SolvePending(bool last) {
   if (pending_.empty()) return false;
   const size_t cur = keyframes_.size() - 1;
+  // Loops another loop supports go in; the others wait for a partner (while young enough).
+  std::vector<PendingLoop> ready, waiting;
+  for (size_t a = 0; a < pending_.size(); ++a) {
+    const PendingLoop& p = pending_[a];
+    bool supported = options_.support_min_path_m <= 0;
+    for (size_t b = 0; b < pending_.size() && !supported; ++b)
+      supported = b != a && Supports(p, pending_[b]);
+    for (size_t e = 0; e < loops_.size() && !supported; ++e)
+      if (loop_indices_[e].first >= track_first_)
+        supported = Supports(p, {loops_[e], loop_indices_[e].first, loop_indices_[e].second});
+    if (supported) {
+      ready.push_back(p);
+    } else if (!last &&
+               (keyframes_[cur].t_ns - p.edge.t_new_ns) * 1e-9 <= options_.support_max_wait_s) {
+      waiting.push_back(p);
+    } else {
+      ++unsupported_;
+      spdlog::debug("vio: loop {:.3f} s -> {:.3f} s dropped: no other loop supports it",
+                    p.edge.t_old_ns * 1e-9, p.edge.t_new_ns * 1e-9);
+    }
+  }
+  pending_ = std::move(waiting);
+  if (ready.empty()) return false;
   const Rigid3d before = keyframes_[cur].correction * keyframes_[cur].odometry;
-  size_t new_from = cur;  // the earliest new keyframe of the pending loops
-  for (const PendingLoop& p : pending_) {
+  size_t new_from = cur;  // the earliest new keyframe of the loops going in
+  for (const PendingLoop& p : ready) {
     new_from = std::min(new_from, p.new_index);
     loops_.push_back(p.edge);
     loop_indices_.emplace_back(p.old_index, p.new_index);
   }
-  const size_t added = pending_.size();
-  pending_.clear();
+  const size_t added = ready.size();
   last_solve_ns_ = keyframes_[cur].t_ns;
   Optimize();
   // Loops the Cauchy loss down-weighted (wrong matches, e.g. on repeated texture) still disagree
@@ -443,7 +483,7 @@ bool LoopCloser::SolvePending() {
   return kept_new > 0 || dropped > 0;
 }
 
-bool LoopCloser::Finish() { return SolvePending(); }
+bool LoopCloser::Finish() { return SolvePending(true); }
 
 void LoopCloser::AddLoop(const LoopEdge& edge) {
   const auto index = [&](int64_t t_ns) {
@@ -561,7 +601,7 @@ double LoopCloser::LoopResidualM(size_t e) const {
 }
 
 void LoopCloser::NewTrack(int64_t t_ns) {
-  SolvePending();
+  SolvePending(true);
   last_solve_ns_.reset();
   ++track_;
   track_starts_ns_.push_back(t_ns);

@@ -615,6 +615,10 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(fl.pnp_px, dl.pnp_px);
   EXPECT_EQ(fl.min_inliers, dl.min_inliers);
   EXPECT_EQ(fl.min_interval_s, dl.min_interval_s);
+  EXPECT_EQ(fl.support_min_path_m, dl.support_min_path_m);
+  EXPECT_EQ(fl.support_tolerance_m, dl.support_tolerance_m);
+  EXPECT_EQ(fl.support_tolerance_fraction, dl.support_tolerance_fraction);
+  EXPECT_EQ(fl.support_max_wait_s, dl.support_max_wait_s);
   EXPECT_EQ(fl.odometry_sigma_m_per_m, dl.odometry_sigma_m_per_m);
   EXPECT_EQ(fl.odometry_min_sigma_m, dl.odometry_min_sigma_m);
   EXPECT_EQ(fl.odometry_sigma_rad_per_m, dl.odometry_sigma_rad_per_m);

@@ -17,15 +17,17 @@
 // first (at most `max_candidates`): their 3D points against the current left features (Hamming,
 // ratio test), PnP RANSAC (`pnp_px`), refined on the inliers. A loop is verified with at least
 // `min_inliers` inliers and a relative pose that agrees with the odometry within the
-// search radius and the view angle. Verified loops wait up to `min_interval_s` and enter the
-// graph together; after each solve the loops (old and new) that still disagree with the graph
-// by more than `max_loop_residual_m` are dropped and the graph solved again.
+// search radius and the view angle, and that another verified loop supports (`support_*`: the
+// two agree on where their new keyframes lie). Verified loops wait up to `min_interval_s` and
+// enter the graph together; after each solve the loops (old and new) that still disagree with
+// the graph by more than `max_loop_residual_m` are dropped and the graph solved again.
+//
 // Pose graph (Ceres): one pose per keyframe of the track; odometry edges between consecutive
-// keyframes (sigma growing with the distance between them) and loop edges (tighter, Cauchy loss);
-// the track's first keyframe is held fixed. Without an IMU all 6 degrees of freedom are free.
-// With one (`gravity_aligned`: the odometry's world z is up, so its roll and pitch are observed
-// and only yaw and position drift) each keyframe has 4: a yaw about the world's z axis and a
-// position, roll and pitch stay the odometry's (as VINS-Mono's 4-DoF pose graph).
+// keyframes (sigma growing with the distance between them) and loop edges (tighter, Cauchy
+// loss); the track's first keyframe is held fixed. Without an IMU all 6 degrees of freedom are
+// free. With one (`gravity_aligned`: the odometry's world z is up, so its roll and pitch are
+// observed and only yaw and position drift) each keyframe has 4: a yaw about the world's z axis
+// and a position, roll and pitch stay the odometry's (as VINS-Mono's 4-DoF pose graph).
 #pragma once
 
 #include <cstdint>
@@ -73,6 +75,16 @@ struct LoopClosureOptions {
   // Between two pose-graph solves: verified loops wait and enter the graph together (all that
   // were found in this time), so no single loop decides alone.
   double min_interval_s = 1.0;
+  // Support: a verified loop enters the graph only when another verified loop, whose new keyframe
+  // lies at least `support_min_path_m` further along the path, places the two new keyframes as
+  // the odometry does (within support_tolerance_m + support_tolerance_fraction x their distance).
+  // A place that repeats (a periodic road texture) can pass one PnP, but a parked start matched
+  // by a moving car puts two keyframes metres apart at one spot. Unsupported loops wait up to
+  // support_max_wait_s for a partner, then are dropped. 0: off (every verified loop enters).
+  double support_min_path_m = 1.5;
+  double support_tolerance_m = 0.5;
+  double support_tolerance_fraction = 0.1;
+  double support_max_wait_s = 10.0;
   // Pose-graph sigmas: odometry per metre between keyframes (with floors), loop edges. The
   // odometry sigmas must allow the drift stereo odometry really has (about 1 % of the distance
   // on the car route): tighter ones make a correct loop of several metres look like an outlier
@@ -149,6 +161,8 @@ class LoopCloser {
   Rigid3d CorrectionAt(int64_t t_ns) const;
 
   const std::vector<LoopEdge>& loops() const { return loops_; }
+  // Verified loops dropped because no other loop supported them (LoopClosureOptions::support_*).
+  size_t unsupported_loops() const { return unsupported_; }
   // Records sub-stage times (loop_closure.orb, .stereo) when set.
   void set_timing(TimingStats* timing) { timing_ = timing; }
   size_t keyframes() const { return keyframes_.size(); }
@@ -169,8 +183,12 @@ class LoopCloser {
   // The relative pose cand_body_from_cur_body from matches, or false.
   bool Match(const Keyframe& candidate, const Keyframe& current, const Rigid3d& predicted,
              double radius_m, LoopEdge* edge) const;
-  // Adds the waiting loops, solves, and drops the loops that disagree with the solved graph.
-  bool SolvePending();
+  struct PendingLoop;
+  // Adds the waiting loops that another loop supports, solves, and drops the loops that disagree
+  // with the solved graph. `last`: the track ends, unsupported loops are dropped.
+  bool SolvePending(bool last = false);
+  // Whether loop b supports loop a (LoopClosureOptions::support_*).
+  bool Supports(const PendingLoop& a, const PendingLoop& b) const;
   void Optimize();
   void OptimizeYawAndPosition();  // the 4-DoF graph
   // The current track's keyframe odometry, where every solve starts (not from the last
@@ -199,7 +217,8 @@ class LoopCloser {
     LoopEdge edge;
     size_t old_index = 0, new_index = 0;  // into keyframes_
   };
-  std::vector<PendingLoop> pending_;      // verified, waiting for the next solve
+  std::vector<PendingLoop> pending_;  // verified, waiting for the next solve or support
+  size_t unsupported_ = 0;
   std::optional<int64_t> last_solve_ns_;  // of the track
   TimingStats* timing_ = nullptr;
   int track_ = 0;
