@@ -321,18 +321,26 @@ void Print(const char* what, const Experiment& e, const char* threshold) {
       Median(e.final_distances));
 }
 
+// The sanitizer build (about 5x slower) flies the first 10 of the 30 seeded runs: the same code,
+// and a subset of runs that all must reach as in the whole set (at most one miss of the 2017 set).
+#ifdef OPTINAV_SANITIZE
+constexpr int kRuns = 10;
+#else
+constexpr int kRuns = 30;
+#endif
+
 TEST_F(NaipMission, ThirtyRunsWithFramesFromTheMapImage) {
-  const Experiment e = RunMany(*db_, maploc::testmaps::Naip("20090818"), 30, 100,
+  const Experiment e = RunMany(*db_, maploc::testmaps::Naip("20090818"), kRuns, 100,
                                [](MissionOptions& o) { o.wind_m_s = 3; });
-  Print("frames 2009 (map 2009), 3 m/s wind", e, "30/30");
-  EXPECT_EQ(e.reached, 30);
+  Print("frames 2009 (map 2009), 3 m/s wind", e, "all");
+  EXPECT_EQ(e.reached, kRuns);
   EXPECT_LT(Median(e.fix_errors), 10.0);
 }
 
 TEST_F(NaipMission, ThirtyRunsOverAnOutdatedMap) {
-  const Experiment e = RunMany(*db_, maploc::testmaps::Naip("20170827"), 30, 200);
-  Print("frames 2017 (map 2009)", e, ">= 29/30");
-  EXPECT_GE(e.reached, 29);
+  const Experiment e = RunMany(*db_, maploc::testmaps::Naip("20170827"), kRuns, 200);
+  Print("frames 2017 (map 2009)", e, "all but one");
+  EXPECT_GE(e.reached, kRuns - 1);
   EXPECT_LT(Median(e.fix_errors), 10.0);
 }
 
