@@ -33,6 +33,9 @@ TEST(LoopClosure, ChecksOptions) {
   o.min_interval_s = -1;
   EXPECT_NE(o.Check().find("min_interval_s"), std::string::npos);
   o = {};
+  o.support_tolerance_m = 0;
+  EXPECT_NE(o.Check().find("support_tolerance_m > 0"), std::string::npos);
+  o = {};
   o.max_view_angle_deg = 200;
   EXPECT_ERROR(LoopCloser(camera::StereoRig{}, Rigid3d::Identity(), o), {.field = "loop_closure"},
                "loop_closure.max_view_angle_deg must be in (0, 180]");
