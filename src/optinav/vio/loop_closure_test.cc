@@ -91,16 +91,21 @@ struct CircleDrive {
     s.world_from_body = Odometry(k);
     return closer.AddKeyframe(s, black, black);
   }
-  // A loop whose measured new keyframe lies `error` (world) off the truth's.
-  void Loop(int old_k, int new_k, const Eigen::Vector3d& error, double sigma_m) {
+  // A loop measured as `old_body_from_new_body`.
+  void Loop(int old_k, int new_k, const Rigid3d& old_body_from_new_body, double sigma_m) {
     LoopEdge e;
     e.t_old_ns = TimeNs(old_k);
     e.t_new_ns = TimeNs(new_k);
-    e.old_body_from_new_body = Truth(old_k).Inverse() * Truth(new_k);
-    e.old_body_from_new_body.translation += Truth(old_k).rotation.conjugate() * error;
+    e.old_body_from_new_body = old_body_from_new_body;
     e.sigma_m = sigma_m;
     e.sigma_rad = 0.01;
     closer.AddLoop(e);
+  }
+  // A loop whose measured new keyframe lies `error` (world) off the truth's.
+  void Loop(int old_k, int new_k, const Eigen::Vector3d& error, double sigma_m) {
+    Rigid3d measured = Truth(old_k).Inverse() * Truth(new_k);
+    measured.translation += Truth(old_k).rotation.conjugate() * error;
+    Loop(old_k, new_k, measured, sigma_m);
   }
   double EndError(int k) const {
     return ((closer.CorrectionAt(TimeNs(k)) * Odometry(k)).translation - Truth(k).translation)
@@ -174,14 +179,9 @@ TEST(LoopClosure, AParkedStartMatchedByAMovingCarIsNotSupported) {
     // Wrong: new keyframes 13 m before the start, each "at" a parked keyframe.
     for (int i = 0; i < 10; ++i) {
       const int old_k = 10 + 8 * i, new_k = wrong_from + i;
-      LoopEdge e;
-      e.t_old_ns = d.TimeNs(old_k);
-      e.t_new_ns = d.TimeNs(new_k);
-      e.old_body_from_new_body = d.Truth(old_k).Inverse() * d.Truth(new_k);
-      e.old_body_from_new_body.translation = {u(rng) + 0.1, u(rng), u(rng)};
-      e.sigma_m = 0.1;
-      e.sigma_rad = 0.01;
-      d.closer.AddLoop(e);
+      Rigid3d measured = d.Truth(old_k).Inverse() * d.Truth(new_k);
+      measured.translation = {u(rng) + 0.1, u(rng), u(rng)};
+      d.Loop(old_k, new_k, measured, 0.1);
     }
     for (int k = lap; k < lap + 60; ++k) d.Add(k);
     kept[support] = d.closer.loops().size();
