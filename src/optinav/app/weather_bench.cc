@@ -151,6 +151,11 @@ std::string RunStem(const Sequence& s, vio::VioMode mode) {
   return fmt::format("{}_{}_seed{}", s.name, vio::VioModeName(mode), s.seed);
 }
 
+// The text of the VIO config the runs use ("" without one).
+std::string VioConfigText(const WeatherBenchOptions& o) {
+  return o.vio_config.empty() ? std::string() : io::ReadFileToString(o.vio_config);
+}
+
 nlohmann::json RunRecord(const WeatherRunResult& r, const WeatherBenchOptions& o) {
   nlohmann::json lost = nlohmann::json::array();
   for (const WeatherLost& l : r.lost)
@@ -161,6 +166,7 @@ nlohmann::json RunRecord(const WeatherRunResult& r, const WeatherBenchOptions& o
           {"scale", o.scale},
           {"duration_s", o.duration_s},
           {"max_frames", o.max_frames},
+          {"vio_config", VioConfigText(o)},
           {"wall_s", r.wall_s},
           {"fps", r.fps},
           {"frames", r.frames},
@@ -185,6 +191,8 @@ bool LoadRun(const std::string& stem, const WeatherBenchOptions& o, WeatherRunRe
     for (const char* key : {"sequence", "mode", "seed", "scale", "duration_s", "max_frames"})
       if (j.at(key) != expect.at(key))
         throw Error(fmt::format("made with another {}", key), {.file = path});
+    if (j.value("vio_config", std::string()) != expect.at("vio_config").get<std::string>())
+      throw Error("made with another --config", {.file = path});
     r->wall_s = Number(j, "wall_s");
     r->fps = Number(j, "fps");
     r->frame_median_ms = Number(j, "frame_median_ms");
@@ -209,6 +217,7 @@ void RunVio(const Sequence& s, const std::string& stem, const WeatherBenchOption
   VioRunSettings st;
   st.dataset = s.dir;
   st.mode = r->mode;
+  st.config_path = o.vio_config;
   st.max_frames = o.max_frames;
   st.out = stem + ".tum";
   st.odometry_out = stem + ".odometry.tum";
@@ -430,6 +439,8 @@ std::string WeatherBenchOptions::Check() const {
     return fmt::format("--scale must be in [0.05, 4], got {}", scale);
   if (seeds < 1) return fmt::format("--seeds must be >= 1, got {}", seeds);
   if (jobs < 1) return fmt::format("--jobs must be >= 1, got {}", jobs);
+  if (!vio_config.empty() && !fs::is_regular_file(vio_config))
+    return fmt::format("--config {}: no such file", vio_config);
   if (worlds.empty()) return "--worlds must name at least one world (urban, terrain)";
   for (sim::WorldKind w : worlds)
     if (w != sim::WorldKind::kUrban && w != sim::WorldKind::kTerrain)
@@ -525,6 +536,7 @@ WeatherBenchResult RunWeatherBench(const WeatherBenchOptions& options,
                                    const WeatherBenchProgress& progress) {
   ThrowIfInvalid(options);
   if (options.html) report::LoadLeafletAssets();  // missing: say so before the runs, not after
+  if (!options.vio_config.empty()) vio::LoadVioOptions(options.vio_config);  // a bad file: now
   const Timer timer;
   if (options.merge) {
     const std::optional<SlurmPlan> plan = ReadSlurmPlan(options.out_dir);

@@ -63,6 +63,9 @@ struct WeatherBenchOptions {
   // Keep complete sequences (their marker names the same options) and finished runs of them;
   // re-render interrupted ones. Without it everything is rendered and run again.
   bool reuse = false;
+  // YAML vio::VioOptions for every run (as `optinav vio --config`); empty: the built-in defaults.
+  // Its text is recorded with each run, and --reuse keeps only runs made with the same text.
+  std::string vio_config;
   double duration_s = 0;  // seconds of the car route to render (0: all of it); tests
   size_t max_frames = 0;  // frames the VIO processes (0: all); tests
   // A planned sweep (app/slurm_plan.h). task >= 0: only that task of WeatherBenchTasks() (one

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "optinav/io/text_parse.h"
 #include "optinav/report/html_report.h"
 #include "optinav/util/testing.h"
 
@@ -46,6 +47,9 @@ TEST(WeatherBench, InvalidOptionsNameTheFlag) {
   o.worlds = {sim::WorldKind::kUrban};
   o.scale = 0;
   EXPECT_ERROR(RunWeatherBench(o), {.field = "--scale"}, "must be in [0.05, 4], got 0");
+  o.scale = 0.5;
+  o.vio_config = (fs::temp_directory_path() / "no_such_vio.yaml").string();
+  EXPECT_ERROR(RunWeatherBench(o), {.field = "--config"}, "no such file");
   EXPECT_FALSE(fs::exists(o.out_dir));
 }
 
@@ -161,6 +165,20 @@ TEST(WeatherBench, ShortUrbanRouteClearAndDustThenReuse) {
   EXPECT_TRUE(resumed.runs[0].reused);
   EXPECT_FALSE(resumed.runs[1].reused);
   EXPECT_TRUE(resumed.runs[1].ok);
+
+  // --config: the runs made with other VIO options are run again; the renderings are kept.
+  o.vio_config = (dir / "vio.yaml").string();
+  io::WriteFileAtomically(o.vio_config, "frontend:\n  detect_min_eigen: 0\n");
+  lines.clear();
+  const WeatherBenchResult configured = RunWeatherBench(o, say);
+  EXPECT_FALSE(Said(lines, "rendering"));
+  ASSERT_EQ(configured.runs.size(), 2u);
+  for (const WeatherRunResult& run : configured.runs) {
+    EXPECT_FALSE(run.reused);
+    EXPECT_TRUE(run.ok);
+  }
+  lines.clear();
+  EXPECT_TRUE(RunWeatherBench(o, say).runs[0].reused);  // the same text: kept
   fs::remove_all(dir);
 }
 

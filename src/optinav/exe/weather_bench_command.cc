@@ -37,6 +37,8 @@ void AddFlags(CLI::App& app, app::WeatherBenchOptions* o, WeatherFlags* f) {
   app.add_flag("--reuse", o->reuse,
                "keep complete sequences in OUT/sequences and finished runs in OUT/runs (resume; "
                "in a planned folder: merge the tasks' runs)");
+  app.add_option("--config", o->vio_config,
+                 "YAML vio options for every run (as `optinav vio --config`; default: built in)");
   app.add_option("--duration", o->duration_s, "seconds of the car route (0: all of it)")
       ->capture_default_str();
   app.add_option(

@@ -100,6 +100,7 @@ VioOptions LoadVioOptions(const std::string& path) {
         {"epipolar_px", &f.epipolar_px},
         {"border_px", &f.border_px},
         {"min_corner_response", &f.min_corner_response},
+        {"detect_min_eigen", &f.detect_min_eigen},
         {"clahe_clip_limit", &f.clahe_clip_limit},
         {"clahe_tiles", &f.clahe_tiles},
         {"clahe_below_std", &f.clahe_below_std},

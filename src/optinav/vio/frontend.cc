@@ -80,6 +80,7 @@ std::string FrontendOptions::Check() const {
   if (median_filter_px < 0 || median_filter_px > 7 ||
       (median_filter_px > 1 && median_filter_px % 2 == 0))
     return "median_filter_px must be 0, 1, 3, 5 or 7";
+  if (!(detect_min_eigen >= 0)) return "detect_min_eigen must be >= 0";
   if (corner_block_px < 3 || corner_block_px > 15) return "corner_block_px must be 3..15";
   if (clahe_tiles < 1 || clahe_tiles > 64) return "clahe_tiles must be 1..64";
   if (!(keyframe_max_interval_s > 0)) return "keyframe_max_interval_s must be > 0";
@@ -112,7 +113,8 @@ void StereoFrontend::Drop(const std::set<uint64_t>& ids) {
   std::erase_if(tracks_, [&](const Track& t) { return ids.count(t.id) > 0; });
 }
 
-void StereoFrontend::Detect(const cv::Mat& image, std::vector<Track>* tracks) {
+void StereoFrontend::Detect(const cv::Mat& image, const std::vector<cv::Mat>& pyramid,
+                            std::vector<Track>* tracks) {
   const int cols = options_.grid_cols, rows = options_.grid_rows;
   const int cell_w = image.cols / cols, cell_h = image.rows / rows;
   const int per_cell = (options_.max_features + cols * rows - 1) / (cols * rows);
@@ -136,21 +138,46 @@ void StereoFrontend::Detect(const cv::Mat& image, std::vector<Track>* tracks) {
     ++count[cy * cols + cx];
     cv::circle(mask, t.pixel, static_cast<int>(options_.min_distance_px), cv::Scalar(0), -1);
   }
+  const bool check = options_.detect_min_eigen > 0 && low_contrast_;
   int budget = options_.max_features - static_cast<int>(tracks->size());
-  std::vector<cv::Point2f> corners;
+  std::vector<cv::Point2f> corners, same;
+  std::vector<uchar> status;
+  std::vector<float> min_eigen;
+  const cv::Size win(options_.klt_window_px, options_.klt_window_px);
+  const cv::TermCriteria one(cv::TermCriteria::COUNT, 1, 0);
   for (int cy = 0; cy < rows && budget > 0; ++cy) {
     for (int cx = 0; cx < cols && budget > 0; ++cx) {
       const int want = std::min(per_cell - count[cy * cols + cx], budget);
       if (want <= 0) continue;
       const cv::Rect cell(cx * cell_w, cy * cell_h, cell_w, cell_h);
       corners.clear();
-      cv::goodFeaturesToTrack(image(cell), corners, want, options_.quality_level,
-                              options_.min_distance_px, mask(cell), options_.corner_block_px);
-      for (const cv::Point2f& c : corners) {
-        const cv::Point2f p(c.x + cell.x, c.y + cell.y);
+      // With the check, spare candidates replace the corners KLT could not track.
+      cv::goodFeaturesToTrack(image(cell), corners, check ? 2 * want + 2 : want,
+                              options_.quality_level, options_.min_distance_px, mask(cell),
+                              options_.corner_block_px);
+      for (cv::Point2f& c : corners)
+        c += cv::Point2f(static_cast<float>(cell.x), static_cast<float>(cell.y));
+      if (check && !corners.empty()) {
+        // KLT's own measure of a window's texture (the smaller eigenvalue of its gradient
+        // matrix over the tracking window, per pixel): KLT declares a track lost below its
+        // threshold, so a corner under it would die at the next frame.
+        same = corners;
+        cv::calcOpticalFlowPyrLK(pyramid, pyramid, corners, same, status, min_eigen, win, 0, one,
+                                 cv::OPTFLOW_USE_INITIAL_FLOW | cv::OPTFLOW_LK_GET_MIN_EIGENVALS,
+                                 0.0);
+      }
+      int taken = 0;
+      for (size_t i = 0; i < corners.size() && taken < want; ++i) {
+        const cv::Point2f& p = corners[i];
+        if (check) {
+          if (min_eigen[i] < options_.detect_min_eigen) continue;
+          // Spares may lie within min_distance of a corner taken before them in this cell.
+          if (mask.at<uchar>(cv::Point(p)) == 0) continue;
+        }
         tracks->push_back({next_id_++, p, std::nullopt, 0});
         cv::circle(mask, p, static_cast<int>(options_.min_distance_px), cv::Scalar(0), -1);
         --budget;
+        ++taken;
       }
     }
   }
@@ -270,16 +297,16 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
     stage.Restart();
   };
   cv::Mat left_eq, right_eq;
-  if (options_.clahe_clip_limit > 0) {
+  if (options_.clahe_clip_limit > 0 || options_.detect_min_eigen > 0) {
     if (options_.clahe_below_std <= 0) {
-      clahe_on_ = true;
+      low_contrast_ = true;
     } else {
       const double std = IntensityStd(left);
-      if (std < options_.clahe_below_std) clahe_on_ = true;
-      if (std > 1.25 * options_.clahe_below_std) clahe_on_ = false;
+      if (std < options_.clahe_below_std) low_contrast_ = true;
+      if (std > 1.25 * options_.clahe_below_std) low_contrast_ = false;
     }
   }
-  if (clahe_on_) {
+  if (low_contrast_ && options_.clahe_clip_limit > 0) {
     if (!clahe_)
       clahe_ = cv::createCLAHE(options_.clahe_clip_limit,
                                cv::Size(options_.clahe_tiles, options_.clahe_tiles));
@@ -387,7 +414,7 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
 
   // 3. New corners where the grid is thin.
   const size_t before = tracks.size();
-  Detect(left_eq, &tracks);
+  Detect(left_eq, left_pyramid, &tracks);
   out.stats.detected = static_cast<int>(tracks.size() - before);
   lap("frontend.detect");
 

@@ -574,6 +574,7 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(file.frontend.clahe_tiles, d.frontend.clahe_tiles);
   EXPECT_EQ(file.frontend.clahe_below_std, d.frontend.clahe_below_std);
   EXPECT_EQ(file.frontend.min_corner_response, d.frontend.min_corner_response);
+  EXPECT_EQ(file.frontend.detect_min_eigen, d.frontend.detect_min_eigen);
   EXPECT_EQ(file.frontend.highpass_sigma_px, d.frontend.highpass_sigma_px);
   EXPECT_EQ(file.frontend.local_norm_sigma_px, d.frontend.local_norm_sigma_px);
   EXPECT_EQ(file.frontend.local_norm_floor, d.frontend.local_norm_floor);
