@@ -151,12 +151,9 @@ std::string RunStem(const Sequence& s, vio::VioMode mode) {
   return fmt::format("{}_{}_seed{}", s.name, vio::VioModeName(mode), s.seed);
 }
 
-// The text of the VIO config the runs use ("" without one).
-std::string VioConfigText(const WeatherBenchOptions& o) {
-  return o.vio_config.empty() ? std::string() : io::ReadFileToString(o.vio_config);
-}
-
-nlohmann::json RunRecord(const WeatherRunResult& r, const WeatherBenchOptions& o) {
+// `config_text`: the text of --config ("" without one), read once per bench.
+nlohmann::json RunRecord(const WeatherRunResult& r, const WeatherBenchOptions& o,
+                         const std::string& config_text) {
   nlohmann::json lost = nlohmann::json::array();
   for (const WeatherLost& l : r.lost)
     lost.push_back({{"start_s", l.start_s}, {"end_s", l.end_s}, {"reason", l.reason}});
@@ -166,7 +163,7 @@ nlohmann::json RunRecord(const WeatherRunResult& r, const WeatherBenchOptions& o
           {"scale", o.scale},
           {"duration_s", o.duration_s},
           {"max_frames", o.max_frames},
-          {"vio_config", VioConfigText(o)},
+          {"vio_config", config_text},
           {"wall_s", r.wall_s},
           {"fps", r.fps},
           {"frames", r.frames},
@@ -182,16 +179,17 @@ double Number(const nlohmann::json& j, const char* key) {
 }
 
 // A finished run of the same sequence, mode, seed and settings; false when there is none.
-bool LoadRun(const std::string& stem, const WeatherBenchOptions& o, WeatherRunResult* r) {
+bool LoadRun(const std::string& stem, const WeatherBenchOptions& o, const std::string& config_text,
+             WeatherRunResult* r) {
   const std::string path = stem + ".json";
   if (!fs::is_regular_file(path) || !fs::is_regular_file(stem + ".tum")) return false;
   try {
     const nlohmann::json j = nlohmann::json::parse(io::ReadFileToString(path));
-    nlohmann::json expect = RunRecord(*r, o);
+    nlohmann::json expect = RunRecord(*r, o, config_text);
     for (const char* key : {"sequence", "mode", "seed", "scale", "duration_s", "max_frames"})
       if (j.at(key) != expect.at(key))
         throw Error(fmt::format("made with another {}", key), {.file = path});
-    if (j.value("vio_config", std::string()) != expect.at("vio_config").get<std::string>())
+    if (j.value("vio_config", std::string()) != config_text)
       throw Error("made with another --config", {.file = path});
     r->wall_s = Number(j, "wall_s");
     r->fps = Number(j, "fps");
@@ -212,8 +210,8 @@ bool LoadRun(const std::string& stem, const WeatherBenchOptions& o, WeatherRunRe
 }
 
 // Runs the VIO as `optinav vio --mode MODE` does (threaded) and records its figures.
-void RunVio(const Sequence& s, const std::string& stem, const WeatherBenchOptions& o, int64_t t0_ns,
-            WeatherRunResult* r) {
+void RunVio(const Sequence& s, const std::string& stem, const WeatherBenchOptions& o,
+            const std::string& config_text, int64_t t0_ns, WeatherRunResult* r) {
   VioRunSettings st;
   st.dataset = s.dir;
   st.mode = r->mode;
@@ -237,7 +235,7 @@ void RunVio(const Sequence& s, const std::string& stem, const WeatherBenchOption
   }
   for (const vio::LostInterval& l : v.lost)
     r->lost.push_back({(l.start_ns - t0_ns) * 1e-9, (l.end_ns - t0_ns) * 1e-9, l.reason});
-  io::WriteFileAtomically(stem + ".json", RunRecord(*r, o).dump(2) + "\n");
+  io::WriteFileAtomically(stem + ".json", RunRecord(*r, o, config_text).dump(2) + "\n");
 }
 
 // NaN when the SE(3) fit is undetermined (a straight stretch of route: the roll about it).
@@ -294,7 +292,8 @@ std::string RunLine(const WeatherRunResult& r, size_t done, size_t total) {
 struct Shared {
   const WeatherBenchOptions& options;
   const WeatherBenchProgress& progress;
-  std::mutex mutex;  // progress lines and their counter
+  std::string vio_config_text;  // of options.vio_config ("" without one), recorded with each run
+  std::mutex mutex;             // progress lines and their counter
   size_t done = 0, total = 0;
   void Say(const std::string& line) {
     std::lock_guard lock(mutex);
@@ -339,11 +338,11 @@ std::vector<WeatherRunResult> RunSequence(const Sequence& s, Shared* sh,
     r.path_length_m = truth.PathLength();
     const std::string stem = (fs::path(o.out_dir) / "runs" / RunStem(s, mode)).string();
     // A run is only as current as its sequence: a fresh rendering is run again.
-    r.reused = o.reuse && !rendered && LoadRun(stem, o, &r);
+    r.reused = o.reuse && !rendered && LoadRun(stem, o, sh->vio_config_text, &r);
     if (o.merge && !r.reused)
       throw Error("no finished run to merge (merge runs nothing)", {.file = stem + ".json"});
     try {
-      if (!r.reused) RunVio(s, stem, o, truth.t_ns.front(), &r);
+      if (!r.reused) RunVio(s, stem, o, sh->vio_config_text, truth.t_ns.front(), &r);
       Evaluate(truth, stem, &r);
     } catch (const std::exception& e) {
       r.ok = false;
@@ -536,7 +535,11 @@ WeatherBenchResult RunWeatherBench(const WeatherBenchOptions& options,
                                    const WeatherBenchProgress& progress) {
   ThrowIfInvalid(options);
   if (options.html) report::LoadLeafletAssets();  // missing: say so before the runs, not after
-  if (!options.vio_config.empty()) vio::LoadVioOptions(options.vio_config);  // a bad file: now
+  std::string config_text;  // read once: every run records the text its options came from
+  if (!options.vio_config.empty()) {
+    vio::LoadVioOptions(options.vio_config);  // a bad file: now, before anything is written
+    config_text = io::ReadFileToString(options.vio_config);
+  }
   const Timer timer;
   if (options.merge) {
     const std::optional<SlurmPlan> plan = ReadSlurmPlan(options.out_dir);
@@ -548,6 +551,7 @@ WeatherBenchResult RunWeatherBench(const WeatherBenchOptions& options,
   fs::create_directories(fs::path(options.out_dir) / "runs");
   const std::vector<Sequence> sequences = ListSequences(options);
   Shared shared{options, progress};
+  shared.vio_config_text = std::move(config_text);
   if (options.task >= 0) {  // one task of a planned sweep: its run files, no tables
     const size_t n_modes = options.modes.size();
     if (static_cast<size_t>(options.task) >= sequences.size() * n_modes)

@@ -50,6 +50,11 @@ TEST(WeatherBench, InvalidOptionsNameTheFlag) {
   o.scale = 0.5;
   o.vio_config = (fs::temp_directory_path() / "no_such_vio.yaml").string();
   EXPECT_ERROR(RunWeatherBench(o), {.field = "--config"}, "no such file");
+  const fs::path bad = fs::temp_directory_path() / "optinav_bad_vio_config.yaml";
+  io::WriteFileAtomically(bad.string(), "frontend: [unclosed\n");
+  o.vio_config = bad.string();
+  EXPECT_ERROR(RunWeatherBench(o), {.file = bad.string(), .line = 2}, "YAML syntax error");
+  fs::remove(bad);
   EXPECT_FALSE(fs::exists(o.out_dir));
 }
 

@@ -171,7 +171,8 @@ void StereoFrontend::Detect(const cv::Mat& image, const std::vector<cv::Mat>& py
         const cv::Point2f& p = corners[i];
         if (check) {
           if (min_eigen[i] < options_.detect_min_eigen) continue;
-          // Spares may lie within min_distance of a corner taken before them in this cell.
+          // As across cells, a spare on the rim of a taken corner's circle (at exactly
+          // min_distance: goodFeaturesToTrack keeps those) is left out.
           if (mask.at<uchar>(cv::Point(p)) == 0) continue;
         }
         tracks->push_back({next_id_++, p, std::nullopt, 0});

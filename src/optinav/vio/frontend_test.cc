@@ -235,7 +235,7 @@ TEST(Frontend, LocalNormalisationKeepsTracksStillUnderApproachingFog) {
   };
   FrontendOptions raw, normalised;
   // The same corners for both, as the detector chose them before the trackability check (which
-  // drops the faintest corners, whose raw tracks err most: 0.094 px raw with it).
+  // drops the faintest corners, whose raw tracks err most: 0.095 px raw with it).
   raw.detect_min_eigen = normalised.detect_min_eigen = 0;
   raw.local_norm_sigma_px = 0;
   normalised.local_norm_sigma_px = 4;
