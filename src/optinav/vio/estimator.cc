@@ -110,6 +110,7 @@ VioOptions LoadVioOptions(const std::string& path) {
         {"median_filter_px", &f.median_filter_px},
         {"corner_block_px", &f.corner_block_px},
         {"keyframe_max_interval_s", &f.keyframe_max_interval_s},
+        {"keyframe_fresh_probation", &f.keyframe_fresh_probation},
         {"keyframe_min_tracked_ratio", &f.keyframe_min_tracked_ratio},
         {"keyframe_min_parallax_px", &f.keyframe_min_parallax_px},
         {"stereo_only_keyframe_min_tracked_ratio", &f.stereo_only_keyframe_min_tracked_ratio},

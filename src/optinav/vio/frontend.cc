@@ -247,9 +247,20 @@ void StereoFrontend::MatchStereo(const std::vector<cv::Mat>& left_pyramid,
   }
 }
 
-bool StereoFrontend::DecideKeyframe(int64_t t_ns, const std::vector<Track>& tracks) {
+bool StereoFrontend::DecideKeyframe(int64_t t_ns, const std::vector<Track>& tracks,
+                                    uint64_t first_new_id) {
   bool keyframe = !has_keyframe_;
   if (!keyframe) {
+    ++frames_since_keyframe_;
+    if (options_.keyframe_fresh_probation && frames_since_keyframe_ == 1) {
+      // The keyframe's own new corners that did not survive this first frame leave its
+      // reference set.
+      std::set<uint64_t> alive_ids;
+      for (const Track& t : tracks) alive_ids.insert(t.id);
+      std::erase_if(keyframe_tracks_, [&](const Track& t) {
+        return t.id >= keyframe_first_new_id_ && alive_ids.count(t.id) == 0;
+      });
+    }
     if ((t_ns - keyframe_t_ns_) * 1e-9 >= options_.keyframe_max_interval_s) keyframe = true;
     std::map<uint64_t, cv::Point2f> at_keyframe;
     for (const Track& t : keyframe_tracks_) at_keyframe[t.id] = t.pixel;
@@ -277,6 +288,8 @@ bool StereoFrontend::DecideKeyframe(int64_t t_ns, const std::vector<Track>& trac
     has_keyframe_ = true;
     keyframe_t_ns_ = t_ns;
     keyframe_tracks_ = tracks;
+    keyframe_first_new_id_ = first_new_id;
+    frames_since_keyframe_ = 0;
     cur_from_keyframe_.setIdentity();
     has_rotation_since_keyframe_ = true;
   }
@@ -415,6 +428,7 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
 
   // 3. New corners where the grid is thin.
   const size_t before = tracks.size();
+  const uint64_t first_new_id = next_id_;
   Detect(left_eq, left_pyramid, &tracks);
   out.stats.detected = static_cast<int>(tracks.size() - before);
   lap("frontend.detect");
@@ -427,7 +441,7 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
   // 4. Keyframe decision (on the left tracks), then stereo matching: every track at keyframes
   // (the backend keeps only keyframe observations and the newest frame's), else only tracks
   // never matched yet (new landmarks need their first stereo triangulation).
-  out.keyframe = DecideKeyframe(t_ns, tracks);
+  out.keyframe = DecideKeyframe(t_ns, tracks, first_new_id);
   std::vector<std::optional<cv::Point2f>> right_pts;
   MatchStereo(left_pyramid, right_pyramid, &tracks, &right_pts, out.keyframe || match_all_stereo);
   for (size_t i = 0; i < tracks.size(); ++i) {

@@ -570,6 +570,7 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(file.frontend.klt_max_iterations, d.frontend.klt_max_iterations);
   EXPECT_EQ(file.frontend.keyframe_min_parallax_px, d.frontend.keyframe_min_parallax_px);
   EXPECT_EQ(file.frontend.keyframe_min_tracked_ratio, d.frontend.keyframe_min_tracked_ratio);
+  EXPECT_EQ(file.frontend.keyframe_fresh_probation, d.frontend.keyframe_fresh_probation);
   EXPECT_EQ(file.frontend.clahe_clip_limit, d.frontend.clahe_clip_limit);
   EXPECT_EQ(file.frontend.clahe_tiles, d.frontend.clahe_tiles);
   EXPECT_EQ(file.frontend.clahe_below_std, d.frontend.clahe_below_std);
