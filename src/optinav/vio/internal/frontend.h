@@ -106,7 +106,9 @@ struct FrontendOptions {
   // rule below) only if they are tracked into the next frame. A fresh corner that KLT cannot
   // follow for one frame is a detection failure, not a sign that the view has changed; counted
   // as a lost track it made 449 of the first 485 frames of the clear car route keyframes at
-  // 400x300 (docs/VIO.md, 2026-12-01: the keyframe's corners on probation).
+  // 400x300. Off: with it the window holds fewer keyframes, and on the car route that cost more
+  // than the dead corners did (stereo-imu, fog 100 %: 2.47 -> 6.07 m; stereo-only test segment
+  // 0.35 -> 0.69 m; docs/VIO.md, 2026-12-01, "tried the same day").
   bool keyframe_fresh_probation = false;
   double keyframe_min_tracked_ratio = 0.75;
   double keyframe_min_parallax_px = 15.0;
