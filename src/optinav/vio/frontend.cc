@@ -251,8 +251,8 @@ bool StereoFrontend::DecideKeyframe(int64_t t_ns, const std::vector<Track>& trac
                                     uint64_t first_new_id) {
   bool keyframe = !has_keyframe_;
   if (!keyframe) {
-    ++frames_since_keyframe_;
-    if (options_.keyframe_fresh_probation && frames_since_keyframe_ == 1) {
+    if (probation_pending_) {
+      probation_pending_ = false;
       // The keyframe's own new corners that did not survive this first frame leave its
       // reference set.
       std::set<uint64_t> alive_ids;
@@ -289,7 +289,7 @@ bool StereoFrontend::DecideKeyframe(int64_t t_ns, const std::vector<Track>& trac
     keyframe_t_ns_ = t_ns;
     keyframe_tracks_ = tracks;
     keyframe_first_new_id_ = first_new_id;
-    frames_since_keyframe_ = 0;
+    probation_pending_ = options_.keyframe_fresh_probation;
     cur_from_keyframe_.setIdentity();
     has_rotation_since_keyframe_ = true;
   }

@@ -182,8 +182,8 @@ TEST(Frontend, NewCornersAreTrackableAtTheNextFrame) {
 
 // A corner detected at a keyframe that KLT cannot follow into the next frame is not a track
 // the view has lost. Counted as one, a still camera over faint texture (the same image at a
-// tenth of its contrast, without the trackability check, so that a third of the fresh corners
-// die every frame) makes nearly every frame a keyframe; with the keyframe's corners on
+// tenth of its contrast, without the trackability check, so that two in five of the fresh
+// corners die every frame) makes nearly every frame a keyframe; with the keyframe's corners on
 // probation only the first frame and the interval rule make keyframes.
 TEST(Frontend, KeyframeCornersThatDieAtOnceDoNotMakeKeyframes) {
   const io::EurocDataset ds = OpenMicro();

@@ -187,10 +187,10 @@ class StereoFrontend {
   int64_t keyframe_t_ns_ = 0;
   std::vector<Track> keyframe_tracks_;
   bool has_keyframe_ = false;
-  // keyframe_fresh_probation: ids >= this in keyframe_tracks_ were detected at the keyframe;
-  // frames since the keyframe (the probation is decided at the first).
+  // keyframe_fresh_probation: ids >= this in keyframe_tracks_ were detected at the keyframe,
+  // and their probation is still to be decided (at the first frame after the keyframe).
   uint64_t keyframe_first_new_id_ = 0;
-  int frames_since_keyframe_ = 0;
+  bool probation_pending_ = false;
   double stereo_depth_guess_m_ = 3.0;
   // Gyro rotation accumulated since the last keyframe (parallax is measured without it).
   Eigen::Quaterniond cur_from_keyframe_ = Eigen::Quaterniond::Identity();
