@@ -69,6 +69,9 @@ std::string BackendOptions::Check() const {
     return "need 0 < min_depth_m < max_depth_m";
   if (!(stereo_only_outlier_pixels >= 0)) return "stereo_only_outlier_pixels must be >= 0";
   if (!(predicted_gate_pixels >= 0)) return "predicted_gate_pixels must be >= 0";
+  if (!(ground_vehicle_lateral_sigma_m_s >= 0) || !(ground_vehicle_vertical_sigma_m_s >= 0))
+    return "ground_vehicle_lateral_sigma_m_s and ground_vehicle_vertical_sigma_m_s must be >= 0 "
+           "(0: off)";
   if (max_iterations < 1) return "max_iterations must be >= 1";
   if (!(max_solver_time_s >= 0)) return "max_solver_time_s must be >= 0 (0: no limit)";
   if (!(initial_trust_region_radius > 0))
@@ -287,10 +290,21 @@ std::vector<std::unique_ptr<ResidualSpec>> SlidingWindowBackend::BuildStateResid
       specs.push_back(std::move(spec));
     }
   }
+  for (const auto& state : states_)
+    if (auto spec = GroundVehicleSpec(*state)) specs.push_back(std::move(spec));
   if (auto spec = PriorSpec()) specs.push_back(std::move(spec));
   for (const auto& factor : timed_factors_)
     if (auto spec = TimedFactorSpec(*factor, nullptr)) specs.push_back(std::move(spec));
   return specs;
+}
+
+std::unique_ptr<ResidualSpec> SlidingWindowBackend::GroundVehicleSpec(const State& state) const {
+  if (!ground_vehicle()) return nullptr;
+  auto spec = std::make_unique<ResidualSpec>();
+  spec->cost.reset(CreateGroundVehicleFactor(options_.ground_vehicle_lateral_sigma_m_s,
+                                             options_.ground_vehicle_vertical_sigma_m_s));
+  spec->blocks = {const_cast<double*>(state.pose), const_cast<double*>(state.speed_bias)};
+  return spec;
 }
 
 std::unique_ptr<ResidualSpec> SlidingWindowBackend::PriorSpec() const {
@@ -559,6 +573,8 @@ void SlidingWindowBackend::OptimizeNewest() {
     if (newest.has_preintegration && newest.preintegration.dt_s() > 0)
       problem.AddResidualBlock(CreateImuFactor(newest.preintegration, options_.gravity), nullptr,
                                previous.pose, previous.speed_bias, newest.pose, newest.speed_bias);
+    if (auto spec = GroundVehicleSpec(newest))
+      problem.AddResidualBlock(spec->cost.release(), nullptr, spec->blocks);
   }
   int num_observations = 0;
   for (auto& spec : BuildResiduals([&](const State* s) { return s == &newest; },
@@ -639,6 +655,9 @@ void SlidingWindowBackend::Optimize() {
                                packed_of(a.pose), packed_of(a.speed_bias), packed_of(b.pose),
                                packed_of(b.speed_bias));
     }
+    for (const auto& state : states_)
+      if (auto spec = GroundVehicleSpec(*state))
+        problem.AddResidualBlock(spec->cost.release(), nullptr, packed_blocks(spec->blocks));
   }
   int num_observations = 0;
   for (auto& spec : reprojection) {
@@ -783,6 +802,7 @@ void SlidingWindowBackend::MarginalizeOldest() {
     spec->blocks = {oldest->pose, oldest->speed_bias, states_[1]->pose, states_[1]->speed_bias};
     owned.push_back(std::move(spec));
   }
+  if (auto spec = GroundVehicleSpec(*oldest)) owned.push_back(std::move(spec));
   if (auto spec = PriorSpec()) owned.push_back(std::move(spec));
   const int64_t next_t = states_[1]->t_ns;
   for (const auto& factor : timed_factors_) {

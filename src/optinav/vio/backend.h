@@ -57,6 +57,14 @@ struct BackendOptions {
   // 4.90 m), so it is off by default (docs/VIO.md, weather). Unused without IMU: a
   // constant-velocity prediction rejected the scene in a turn and the estimate diverged.
   double predicted_gate_pixels = 0.0;
+  // With IMU: a wheeled ground vehicle's non-holonomic constraint on every state, its body-frame
+  // velocity's sideways (y) and vertical (z) components ~ N(0, sigma^2) (m/s; 0: that component
+  // unconstrained; both 0: off, the default). For a body frame with x forward and its origin near
+  // the rear axle. On a car the IMU cannot tell a slow vertical velocity error from none (no
+  // acceleration), and vision with near points only (fog) let the height drift (docs/VIO.md,
+  // weather, 2026-12-02).
+  double ground_vehicle_lateral_sigma_m_s = 0.0;
+  double ground_vehicle_vertical_sigma_m_s = 0.0;
   int max_iterations = 8;  // Levenberg-Marquardt iterations per frame
   // Levenberg-Marquardt's first damping is 1 / this radius (Ceres' default 1e4 damps the weakly
   // constrained directions, far landmark depths and the velocity/attitude they couple to, so
@@ -268,6 +276,12 @@ class SlidingWindowBackend {
   std::vector<double*> TimedFactorBlocks(const TimedFactor& factor, State* anchor) const;
   // The IMU, prior and timed-factor residuals of the whole window (reprojections excluded).
   std::vector<std::unique_ptr<ResidualSpec>> BuildStateResiduals() const;
+  // The ground-vehicle constraint of `state` (nullptr when off or without IMU).
+  std::unique_ptr<ResidualSpec> GroundVehicleSpec(const State& state) const;
+  bool ground_vehicle() const {
+    return options_.use_imu && (options_.ground_vehicle_lateral_sigma_m_s > 0 ||
+                                options_.ground_vehicle_vertical_sigma_m_s > 0);
+  }
   // The prior as a residual (nullptr when there is none).
   std::unique_ptr<ResidualSpec> PriorSpec() const;
   // A timed factor as a residual on its anchor state, or nullptr when it cannot be used yet (or

@@ -54,6 +54,13 @@ RunResult RunBackend(const SyntheticScene& scene, const std::vector<SyntheticFra
   return result;
 }
 
+TEST(Backend, GroundVehicleSigmasAreChecked) {
+  BackendOptions o;
+  EXPECT_EQ(o.Check(), "");
+  o.ground_vehicle_vertical_sigma_m_s = -0.05;
+  EXPECT_NE(o.Check().find("ground_vehicle_vertical_sigma_m_s"), std::string::npos);
+}
+
 TEST(Backend, StereoInertialOnSyntheticRoom) {
   const SyntheticScene scene;
   const auto frames = scene.Generate(10.0, 20.0, 0.7, true, 3);

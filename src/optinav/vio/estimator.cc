@@ -110,6 +110,7 @@ VioOptions LoadVioOptions(const std::string& path) {
         {"median_filter_px", &f.median_filter_px},
         {"corner_block_px", &f.corner_block_px},
         {"keyframe_max_interval_s", &f.keyframe_max_interval_s},
+        {"contrast_stretch_std", &f.contrast_stretch_std},
         {"keyframe_fresh_probation", &f.keyframe_fresh_probation},
         {"keyframe_min_tracked_ratio", &f.keyframe_min_tracked_ratio},
         {"keyframe_min_parallax_px", &f.keyframe_min_parallax_px},
@@ -121,6 +122,8 @@ VioOptions LoadVioOptions(const std::string& path) {
         {"huber_pixels", &b.huber_pixels},
         {"outlier_pixels", &b.outlier_pixels},
         {"predicted_gate_pixels", &b.predicted_gate_pixels},
+        {"ground_vehicle_lateral_sigma_m_s", &b.ground_vehicle_lateral_sigma_m_s},
+        {"ground_vehicle_vertical_sigma_m_s", &b.ground_vehicle_vertical_sigma_m_s},
         {"stereo_only_outlier_pixels", &o.stereo_only_outlier_pixels},
         {"stereo_only_initial_trust_region_radius", &o.stereo_only_initial_trust_region_radius},
         {"stereo_only_function_tolerance", &o.stereo_only_function_tolerance},
@@ -723,10 +726,12 @@ std::optional<FrameEstimate> VioEstimator::RunBackend(FramePacket packet) {
       const BackendStats& bs = backend_.stats();
       spdlog::trace(
           "vio frame {:.3f}: kf {} tracked {} fb {} ransac {} detected {} stereo {} flow {:.1f} "
-          "constrained {} landmarks {} outliers {} gated {} median {:.3f}",
+          "constrained {} landmarks {} outliers {} gated {} median {:.3f} gyro_bias {:.6f} {:.6f} "
+          "{:.6f}",
           t_ns * 1e-9, features.keyframe ? 1 : 0, fs.tracked, fs.rejected_fb, fs.rejected_ransac,
           fs.detected, fs.stereo, fs.median_flow_px, bs.newest_constrained_landmarks,
-          bs.num_landmarks, bs.num_outliers_removed, bs.num_gated, bs.median_reprojection_px);
+          bs.num_landmarks, bs.num_outliers_removed, bs.num_gated, bs.median_reprojection_px,
+          estimate.bias.gyro.x(), estimate.bias.gyro.y(), estimate.bias.gyro.z());
     }
     // Divergence.
     const bool use_imu = options_.mode == VioMode::kStereoImu;

@@ -267,6 +267,25 @@ void FactorInformation(const Eigen::MatrixXd& H, const Eigen::VectorXd& b, Linea
   prior->r0 = inv_sqrt_l.asDiagonal() * eig.eigenvectors().transpose() * (d.asDiagonal() * b);
 }
 
+class GroundVehicleFunctor {
+ public:
+  GroundVehicleFunctor(double sigma_lateral, double sigma_vertical)
+      : w_lateral_(sigma_lateral > 0 ? 1.0 / sigma_lateral : 0.0),
+        w_vertical_(sigma_vertical > 0 ? 1.0 / sigma_vertical : 0.0) {}
+  template <typename T>
+  bool operator()(const T* pose, const T* speed_bias, T* residual) const {
+    const Eigen::Map<const Eigen::Quaternion<T>> world_from_body(pose + 3);
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> v_world(speed_bias);
+    const Eigen::Matrix<T, 3, 1> v_body = world_from_body.conjugate() * v_world;
+    residual[0] = T(w_lateral_) * v_body.y();
+    residual[1] = T(w_vertical_) * v_body.z();
+    return true;
+  }
+
+ private:
+  double w_lateral_, w_vertical_;
+};
+
 }  // namespace
 
 const ceres::Manifold* PoseManifold() {
@@ -279,6 +298,12 @@ ceres::CostFunction* CreateImuFactor(const ImuPreintegration& preintegration,
                                      const Eigen::Vector3d& gravity) {
   return new ceres::AutoDiffCostFunction<ImuFunctor, 15, kPoseSize, kSpeedBiasSize, kPoseSize,
                                          kSpeedBiasSize>(new ImuFunctor(preintegration, gravity));
+}
+
+ceres::CostFunction* CreateGroundVehicleFactor(double sigma_lateral_m_s,
+                                               double sigma_vertical_m_s) {
+  return new ceres::AutoDiffCostFunction<GroundVehicleFunctor, 2, kPoseSize, kSpeedBiasSize>(
+      new GroundVehicleFunctor(sigma_lateral_m_s, sigma_vertical_m_s));
 }
 
 ceres::CostFunction* CreateReprojectionFactor(const Rigid3d& cam_from_body,

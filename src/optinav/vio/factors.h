@@ -34,6 +34,13 @@ const ceres::Manifold* PoseManifold();
 ceres::CostFunction* CreateImuFactor(const ImuPreintegration& preintegration,
                                      const Eigen::Vector3d& gravity = GravityInWorld());
 
+// A wheeled ground vehicle's velocity lies along its body x axis (no side-slip, no vertical
+// motion through the body: the non-holonomic constraint of land-vehicle navigation): 2 residuals,
+// the body-frame velocity's y / sigma_lateral and z / sigma_vertical (m/s; a sigma <= 0 leaves
+// that residual at 0). Blocks: pose, speed_bias. Holds for a body frame with x forward and its
+// origin near the rear axle (a car's IMU at the rear axle, the simulator's car).
+ceres::CostFunction* CreateGroundVehicleFactor(double sigma_lateral_m_s, double sigma_vertical_m_s);
+
 // The state at time t predicted from an anchor state i (its pose and speed-bias blocks) and the
 // IMU preintegrated from i to t, with first-order bias corrections:
 //   p_t = p_i + v_i dt + g dt^2 / 2 + R_i dp,  v_t = v_i + g dt + R_i dv,  R_t = R_i dR

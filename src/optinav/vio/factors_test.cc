@@ -92,5 +92,33 @@ TEST(Reprojection, AnalyticJacobianMatchesAutoDiff) {
   EXPECT_LT(worst_tangent, 1e-8);
 }
 
+TEST(GroundVehicle, PenalisesOnlyTheBodyFramesSidewaysAndVerticalVelocity) {
+  // A car heading north-east (yaw 45 deg), pitched up 5 deg on a slope.
+  const Eigen::Quaterniond world_from_body =
+      Eigen::AngleAxisd(M_PI / 4, Eigen::Vector3d::UnitZ()) *
+      Eigen::AngleAxisd(-5 * M_PI / 180, Eigen::Vector3d::UnitY());
+  const double pose[kPoseSize] = {
+      3, -2, 1, world_from_body.x(), world_from_body.y(), world_from_body.z(), world_from_body.w()};
+  auto evaluate = [&](const Eigen::Vector3d& v_body, double sigma_lateral, double sigma_vertical) {
+    const Eigen::Vector3d v_world = world_from_body * v_body;
+    const double speed_bias[kSpeedBiasSize] = {v_world.x(), v_world.y(), v_world.z(), 0.01, 0,
+                                               0,           0.1,         0,           0};
+    std::unique_ptr<ceres::CostFunction> cost(
+        CreateGroundVehicleFactor(sigma_lateral, sigma_vertical));
+    const double* parameters[2] = {pose, speed_bias};
+    Eigen::Vector2d r;
+    EXPECT_TRUE(cost->Evaluate(parameters, r.data(), nullptr));
+    return r;
+  };
+  // Driving along the body x axis, uphill: no residual.
+  EXPECT_LT(evaluate({8, 0, 0}, 0.1, 0.05).norm(), 1e-12);
+  // Sliding sideways 0.2 m/s and sinking 0.1 m/s through the body: whitened by each sigma.
+  const Eigen::Vector2d r = evaluate({8, 0.2, -0.1}, 0.1, 0.05);
+  EXPECT_NEAR(r.x(), 2.0, 1e-9);
+  EXPECT_NEAR(r.y(), -2.0, 1e-9);
+  // A zero sigma leaves that component free.
+  EXPECT_NEAR(evaluate({8, 0.2, -0.1}, 0, 0.05).x(), 0.0, 1e-12);
+}
+
 }  // namespace
 }  // namespace optinav::vio

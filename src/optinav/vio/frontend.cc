@@ -74,6 +74,7 @@ std::string FrontendOptions::Check() const {
   if (!(min_corner_response >= 0)) return "min_corner_response must be >= 0";
   if (!(clahe_clip_limit >= 0)) return "clahe_clip_limit must be >= 0";
   if (!(clahe_below_std >= 0)) return "clahe_below_std must be >= 0";
+  if (!(contrast_stretch_std >= 0)) return "contrast_stretch_std must be >= 0 (0: off)";
   if (!(highpass_sigma_px >= 0)) return "highpass_sigma_px must be >= 0";
   if (!(local_norm_sigma_px >= 0)) return "local_norm_sigma_px must be >= 0";
   if (!(local_norm_floor > 0)) return "local_norm_floor must be > 0";
@@ -311,7 +312,8 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
     stage.Restart();
   };
   cv::Mat left_eq, right_eq;
-  if (options_.clahe_clip_limit > 0 || options_.detect_min_eigen > 0) {
+  if (options_.clahe_clip_limit > 0 || options_.detect_min_eigen > 0 ||
+      options_.contrast_stretch_std > 0) {
     if (options_.clahe_below_std <= 0) {
       low_contrast_ = true;
     } else {
@@ -326,6 +328,14 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
                                cv::Size(options_.clahe_tiles, options_.clahe_tiles));
     clahe_->apply(left, left_eq);
     clahe_->apply(right, right_eq);
+  } else if (low_contrast_ && options_.contrast_stretch_std > 0) {
+    cv::Scalar mean, stddev;
+    cv::meanStdDev(left, mean, stddev);
+    const double want = options_.contrast_stretch_std / std::max(stddev[0], 1.0);
+    stretch_gain_ = stretch_gain_ > 0 ? 0.9 * stretch_gain_ + 0.1 * want : want;
+    const double g = std::max(stretch_gain_, 1.0), offset = mean[0] * (1 - g);
+    left.convertTo(left_eq, -1, g, offset);
+    right.convertTo(right_eq, -1, g, offset);
   } else {
     left_eq = left;
     right_eq = right;

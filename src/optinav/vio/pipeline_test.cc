@@ -574,6 +574,7 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(file.frontend.clahe_clip_limit, d.frontend.clahe_clip_limit);
   EXPECT_EQ(file.frontend.clahe_tiles, d.frontend.clahe_tiles);
   EXPECT_EQ(file.frontend.clahe_below_std, d.frontend.clahe_below_std);
+  EXPECT_EQ(file.frontend.contrast_stretch_std, d.frontend.contrast_stretch_std);
   EXPECT_EQ(file.frontend.min_corner_response, d.frontend.min_corner_response);
   EXPECT_EQ(file.frontend.detect_min_eigen, d.frontend.detect_min_eigen);
   EXPECT_EQ(file.frontend.highpass_sigma_px, d.frontend.highpass_sigma_px);
@@ -586,6 +587,10 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(file.backend.huber_pixels, d.backend.huber_pixels);
   EXPECT_EQ(file.backend.outlier_pixels, d.backend.outlier_pixels);
   EXPECT_EQ(file.backend.predicted_gate_pixels, d.backend.predicted_gate_pixels);
+  EXPECT_EQ(file.backend.ground_vehicle_lateral_sigma_m_s,
+            d.backend.ground_vehicle_lateral_sigma_m_s);
+  EXPECT_EQ(file.backend.ground_vehicle_vertical_sigma_m_s,
+            d.backend.ground_vehicle_vertical_sigma_m_s);
   EXPECT_EQ(file.backend.prior_accel_bias_sigma, d.backend.prior_accel_bias_sigma);
   EXPECT_EQ(file.still_max_gyro_std, d.still_max_gyro_std);
   EXPECT_EQ(file.still_max_accel_std, d.still_max_accel_std);

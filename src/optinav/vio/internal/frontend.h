@@ -65,6 +65,12 @@ struct FrontendOptions {
   // so clear and foggy frames stay untouched (bit-identical results). The same low-contrast
   // state selects the frames whose new corners detect_min_eigen checks.
   double clahe_below_std = 20.0;
+  // On low-contrast frames with CLAHE off: a global contrast stretch of both images by one gain,
+  // so that the left image's intensity standard deviation becomes this (grey levels; 0: off).
+  // The gain follows the frames slowly (each frame moves it 10 % of the way), so consecutive
+  // frames look alike to KLT. Unlike CLAHE it does not vary across the image (docs/VIO.md,
+  // weather, 2026-12-02).
+  double contrast_stretch_std = 0.0;
   // High-pass filter of both images before detection and tracking: image - Gaussian blur of
   // sigma highpass_sigma_px + 128 (0: off). Removes slow intensity ramps such as the haze
   // gradient of fog and dust, which changes under a feature as it approaches. Off: it made the
@@ -197,6 +203,7 @@ class StereoFrontend {
   bool has_rotation_since_keyframe_ = false;
   cv::Ptr<cv::CLAHE> clahe_;       // when clahe_clip_limit > 0
   bool low_contrast_ = false;      // the low-contrast state (clahe_below_std)
+  double stretch_gain_ = 0;        // contrast_stretch_std's current gain (0: none yet)
   TimingStats* timing_ = nullptr;  // median depth of the last stereo matches
 };
 
