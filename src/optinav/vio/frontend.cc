@@ -312,14 +312,15 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
     stage.Restart();
   };
   cv::Mat left_eq, right_eq;
+  cv::Scalar left_mean, left_std;  // of the left image, when a contrast option needs them
   if (options_.clahe_clip_limit > 0 || options_.detect_min_eigen > 0 ||
       options_.contrast_stretch_std > 0) {
+    cv::meanStdDev(left, left_mean, left_std);
     if (options_.clahe_below_std <= 0) {
       low_contrast_ = true;
     } else {
-      const double std = IntensityStd(left);
-      if (std < options_.clahe_below_std) low_contrast_ = true;
-      if (std > 1.25 * options_.clahe_below_std) low_contrast_ = false;
+      if (left_std[0] < options_.clahe_below_std) low_contrast_ = true;
+      if (left_std[0] > 1.25 * options_.clahe_below_std) low_contrast_ = false;
     }
   }
   if (low_contrast_ && options_.clahe_clip_limit > 0) {
@@ -329,11 +330,9 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
     clahe_->apply(left, left_eq);
     clahe_->apply(right, right_eq);
   } else if (low_contrast_ && options_.contrast_stretch_std > 0) {
-    cv::Scalar mean, stddev;
-    cv::meanStdDev(left, mean, stddev);
-    const double want = options_.contrast_stretch_std / std::max(stddev[0], 1.0);
+    const double want = options_.contrast_stretch_std / std::max(left_std[0], 1.0);
     stretch_gain_ = stretch_gain_ > 0 ? 0.9 * stretch_gain_ + 0.1 * want : want;
-    const double g = std::max(stretch_gain_, 1.0), offset = mean[0] * (1 - g);
+    const double g = std::max(stretch_gain_, 1.0), offset = left_mean[0] * (1 - g);
     left.convertTo(left_eq, -1, g, offset);
     right.convertTo(right_eq, -1, g, offset);
   } else {
