@@ -32,6 +32,8 @@ std::string VioOptions::Check() const {
   if (!(stereo_only_outlier_pixels >= 0)) return "backend.stereo_only_outlier_pixels must be >= 0";
   if (!(stereo_only_initial_trust_region_radius > 0) || !(stereo_only_function_tolerance > 0))
     return "backend.stereo_only_initial_trust_region_radius and function_tolerance must be > 0";
+  if (!(lowcontrast_gyro_walk_scale > 0 && lowcontrast_gyro_walk_scale <= 1))
+    return "backend.lowcontrast_gyro_walk_scale must be in (0, 1]";
   if (!(init_window_s > 0)) return "init_window_s must be > 0";
   if (!(still_max_gyro_std > 0) || !(still_max_accel_std > 0))
     return "still_max_gyro_std and still_max_accel_std must be > 0";
@@ -125,6 +127,7 @@ VioOptions LoadVioOptions(const std::string& path) {
         {"ground_vehicle_lateral_sigma_m_s", &b.ground_vehicle_lateral_sigma_m_s},
         {"ground_vehicle_vertical_sigma_m_s", &b.ground_vehicle_vertical_sigma_m_s},
         {"stereo_only_outlier_pixels", &o.stereo_only_outlier_pixels},
+        {"lowcontrast_gyro_walk_scale", &o.lowcontrast_gyro_walk_scale},
         {"stereo_only_initial_trust_region_radius", &o.stereo_only_initial_trust_region_radius},
         {"stereo_only_function_tolerance", &o.stereo_only_function_tolerance},
         {"min_depth_m", &b.min_depth_m},
@@ -711,6 +714,8 @@ std::optional<FrameEstimate> VioEstimator::RunBackend(FramePacket packet) {
         pre = Preintegrate(backend_imu_, *packet.prev_t_ns, t_ns, bias);
     }
     const FrontendOutput& features = packet.features;
+    if (features.stats.low_contrast && options_.lowcontrast_gyro_walk_scale != 1.0)
+      pre.ScaleGyroBiasWalk(options_.lowcontrast_gyro_walk_scale);
     StateEstimate estimate;
     {
       const Timer timer;

@@ -323,6 +323,7 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
       if (left_std[0] > 1.25 * options_.clahe_below_std) low_contrast_ = false;
     }
   }
+  out.stats.low_contrast = low_contrast_;
   if (low_contrast_ && options_.clahe_clip_limit > 0) {
     if (!clahe_)
       clahe_ = cv::createCLAHE(options_.clahe_clip_limit,

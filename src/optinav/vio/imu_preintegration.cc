@@ -12,6 +12,7 @@ ImuPreintegration::ImuPreintegration(const ImuBias& linearization_bias, const Im
 
 void ImuPreintegration::Reset() {
   dt_s_ = 0;
+  gyro_walk_s_ = 0;
   delta_R_.setIdentity();
   delta_v_.setZero();
   delta_p_.setZero();
@@ -49,14 +50,25 @@ ImuPreintegration ImuPreintegration::Prefix(double duration_s) const {
   for (const ImuMeasurement& m : measurements_) {
     const double dt = std::min(m.dt_s, duration_s - t);
     if (dt <= 1e-12) break;
-    out.Integrate(m.gyro, m.accel, dt);
+    out.measurements_.push_back({dt, m.gyro, m.accel, m.gyro_walk_scale});
+    out.Propagate(out.measurements_.back());
     t += dt;
   }
   return out;
 }
 
+void ImuPreintegration::ScaleGyroBiasWalk(double scale) {
+  OPTINAV_CHECK(scale > 0);
+  gyro_walk_s_ = 0;
+  for (ImuMeasurement& m : measurements_) {
+    m.gyro_walk_scale *= scale;
+    gyro_walk_s_ += m.gyro_walk_scale * m.gyro_walk_scale * m.dt_s;
+  }
+}
+
 void ImuPreintegration::Propagate(const ImuMeasurement& m) {
   const double dt = m.dt_s, dt2 = dt * dt;
+  gyro_walk_s_ += m.gyro_walk_scale * m.gyro_walk_scale * dt;
   const Eigen::Vector3d w = m.gyro - bias_.gyro;
   const Eigen::Vector3d a = m.accel - bias_.accel;
   const Eigen::Matrix3d dR = delta_R_.toRotationMatrix();
@@ -99,7 +111,7 @@ Matrix15d ImuPreintegration::FullCovariance() const {
   Matrix15d c = Matrix15d::Zero();
   c.topLeftCorner<9, 9>() = covariance_;
   const double wg = noise_.gyro_random_walk, wa = noise_.accel_random_walk;
-  c.block<3, 3>(9, 9) = Eigen::Matrix3d::Identity() * wg * wg * dt_s_;
+  c.block<3, 3>(9, 9) = Eigen::Matrix3d::Identity() * wg * wg * gyro_walk_s_;
   c.block<3, 3>(12, 12) = Eigen::Matrix3d::Identity() * wa * wa * dt_s_;
   return c;
 }

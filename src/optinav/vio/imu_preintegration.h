@@ -55,6 +55,8 @@ struct ImuMeasurement {
   double dt_s = 0;
   Eigen::Vector3d gyro = Eigen::Vector3d::Zero();
   Eigen::Vector3d accel = Eigen::Vector3d::Zero();
+  // The gyro bias random walk over this sample is this times the noise model's (1: as modelled).
+  double gyro_walk_scale = 1.0;
 };
 
 class ImuPreintegration {
@@ -71,6 +73,9 @@ class ImuPreintegration {
   void Reintegrate(const ImuBias& linearization_bias);
   // The preintegration of the first `duration_s` seconds (the last sample cut), same bias.
   ImuPreintegration Prefix(double duration_s) const;
+  // Scales the gyro bias random walk of every stored sample (FullCovariance): a bias held
+  // tighter than the noise model over this interval (scale < 1).
+  void ScaleGyroBiasWalk(double scale);
 
   double dt_s() const { return dt_s_; }
   const ImuBias& linearization_bias() const { return bias_; }
@@ -113,6 +118,7 @@ class ImuPreintegration {
   ImuNoise noise_;
   std::vector<ImuMeasurement> measurements_;
   double dt_s_ = 0;
+  double gyro_walk_s_ = 0;  // sum of gyro_walk_scale^2 * dt_s over the samples
   Eigen::Quaterniond delta_R_ = Eigen::Quaterniond::Identity();
   Eigen::Vector3d delta_v_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d delta_p_ = Eigen::Vector3d::Zero();

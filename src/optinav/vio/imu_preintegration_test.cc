@@ -171,6 +171,31 @@ TEST(ImuPreintegration, AppendEqualsOneIntegration) {
   EXPECT_LT((first.dp_dbg() - whole.dp_dbg()).norm(), 1e-12);
 }
 
+// A held gyro bias (ScaleGyroBiasWalk, backend.lowcontrast_gyro_walk_scale): only the gyro bias
+// block of the 15x15 covariance shrinks, by the scale squared; it survives a merge with an
+// unscaled interval (time-weighted), a re-integration and a prefix.
+TEST(ImuPreintegration, ScaledGyroBiasWalk) {
+  const AnalyticTrajectory traj;
+  const ImuNoise noise;
+  ImuPreintegration held = IntegrateAnalytic(traj, 0.0, 0.4, 200, {}, {});
+  const ImuPreintegration plain = held;
+  held.ScaleGyroBiasWalk(0.1);
+  const double wg2 = noise.gyro_random_walk * noise.gyro_random_walk;
+  const Matrix15d a = plain.FullCovariance(), b = held.FullCovariance();
+  EXPECT_NEAR(b(9, 9), 0.01 * a(9, 9), 1e-20);
+  EXPECT_NEAR(b(11, 11), 0.01 * wg2 * 0.4, 1e-20);
+  EXPECT_EQ(b(12, 12), a(12, 12));
+  EXPECT_EQ((b.topLeftCorner<9, 9>() - a.topLeftCorner<9, 9>()).norm(), 0.0);
+  ImuPreintegration merged = held;
+  merged.Append(IntegrateAnalytic(traj, 0.4, 1.0, 200, {}, {}));
+  EXPECT_NEAR(merged.FullCovariance()(9, 9), wg2 * (0.01 * 0.4 + 0.6), 1e-18);
+  ImuBias other;
+  other.gyro = {0.002, 0, 0};
+  merged.Reintegrate(other);
+  EXPECT_NEAR(merged.FullCovariance()(9, 9), wg2 * (0.01 * 0.4 + 0.6), 1e-18);
+  EXPECT_NEAR(merged.Prefix(0.2).FullCovariance()(9, 9), wg2 * 0.01 * 0.2, 1e-18);
+}
+
 TEST(ImuPreintegration, MeasurementsBetweenCoverTheInterval) {
   std::vector<TimedImuSample> samples;
   for (int k = 0; k < 10; ++k) {

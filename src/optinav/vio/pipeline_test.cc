@@ -591,6 +591,7 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
             d.backend.ground_vehicle_lateral_sigma_m_s);
   EXPECT_EQ(file.backend.ground_vehicle_vertical_sigma_m_s,
             d.backend.ground_vehicle_vertical_sigma_m_s);
+  EXPECT_EQ(file.lowcontrast_gyro_walk_scale, d.lowcontrast_gyro_walk_scale);
   EXPECT_EQ(file.backend.prior_accel_bias_sigma, d.backend.prior_accel_bias_sigma);
   EXPECT_EQ(file.still_max_gyro_std, d.still_max_gyro_std);
   EXPECT_EQ(file.still_max_accel_std, d.still_max_accel_std);
@@ -663,6 +664,10 @@ TEST(VioConfig, BadConfigsNameTheKey) {
                 optinav::testing::WriteFile(dir / "i.yaml", "backend:\n  max_solver_time_s: 0.2\n"))
                 .backend.max_solver_time_s,
             0.2);
+  const std::string held =
+      optinav::testing::WriteFile(dir / "j.yaml", "backend:\n  lowcontrast_gyro_walk_scale: 0\n");
+  EXPECT_ERROR(LoadVioOptions(held), {.file = held},
+               "backend.lowcontrast_gyro_walk_scale must be in (0, 1]");
   const std::string mode = optinav::testing::WriteFile(dir / "c.yaml", "mode: mono\n");
   EXPECT_ERROR(LoadVioOptions(mode), {.file = mode, .line = 1, .field = "mode"},
                "expected stereo-imu or stereo, got 'mono'");

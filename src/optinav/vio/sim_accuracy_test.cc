@@ -196,6 +196,28 @@ TEST(SimAccuracy, CarStereoInertialInFogKeepsTheStaticGyroBias) {
   EXPECT_GT(b.end_m, 2 * a.end_m) << "the loose prior is expected to drift here";
 }
 
+TEST(SimAccuracy, CarStereoInertialInDustHoldsTheGyroBias) {
+  // 100 % dust on the urban car route, stereo-inertial, first 40 s (275 m), the defaults: the
+  // texture left is a grey level or two deep; on such frames the gyro bias random walk is held at
+  // 0.3 of the IMU's (backend.lowcontrast_gyro_walk_scale), since the vision of faint texture
+  // pulls the vertical gyro bias and the yaw with it. That pull takes the whole route to show
+  // (seed 1, 762 m: 2.41 -> 1.51 m mean error, docs/VIO.md, weather, 2026-12-02); on this
+  // segment the hold is not better (measured 0.942 m mean, 1.162 m at the end; 0.818 m and
+  // 1.218 m as modelled), so this is a guard on stereo-inertial dust, not the acceptance.
+  const std::string dir = Simulate("dust_imu", "car", 40.0, 5.0, 20.0, 1, "dust:100");
+  VioRunOptions options;
+  options.vio.mode = VioMode::kStereoImu;
+  const Accuracy a = Evaluate(dir, RunVioOnEuroc(dir, options), /*se3=*/false);
+  std::printf(
+      "simulated car, urban, dust 100 %%, stereo-inertial, 400x300, %.1f m (%s start): mean APE "
+      "(first poses aligned) %.3f m (< 1.2 m), end %.3f m (< 1.6 m)\n",
+      a.path_m, a.init.c_str(), a.ape_mean_m, a.end_m);
+  EXPECT_EQ(a.init, "static");
+  EXPECT_EQ(a.lost, 0u);
+  EXPECT_LT(a.ape_mean_m, 1.2);
+  EXPECT_LT(a.end_m, 1.6);
+}
+
 TEST(SimAccuracy, CarStereoInertialInFallingLeavesGatesTheParticles) {
   // Falling leaves (50 %) on the urban car route, stereo-inertial, first 25 s (163 m). The
   // leaves drift through the scene with the wind and KLT tracks them like the scene: with the
