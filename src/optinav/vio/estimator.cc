@@ -127,9 +127,9 @@ VioOptions LoadVioOptions(const std::string& path) {
         {"ground_vehicle_lateral_sigma_m_s", &b.ground_vehicle_lateral_sigma_m_s},
         {"ground_vehicle_vertical_sigma_m_s", &b.ground_vehicle_vertical_sigma_m_s},
         {"stereo_only_outlier_pixels", &o.stereo_only_outlier_pixels},
-        {"lowcontrast_gyro_walk_scale", &o.lowcontrast_gyro_walk_scale},
         {"stereo_only_initial_trust_region_radius", &o.stereo_only_initial_trust_region_radius},
         {"stereo_only_function_tolerance", &o.stereo_only_function_tolerance},
+        {"lowcontrast_gyro_walk_scale", &o.lowcontrast_gyro_walk_scale},
         {"min_depth_m", &b.min_depth_m},
         {"max_depth_m", &b.max_depth_m},
         {"max_iterations", &b.max_iterations},
@@ -513,7 +513,8 @@ bool VioEstimator::MotionInitStep(const FramePacket& packet) {
                         e.world_from_body.rotation.coeffs().allFinite();
     if (finite &&
         init_odometry_->stats().newest_constrained_landmarks >= options_.min_tracked_landmarks) {
-      init_frames_.push_back({t_ns, e.world_from_body, features.observations, features.keyframe});
+      init_frames_.push_back({t_ns, e.world_from_body, features.observations, features.keyframe,
+                              features.stats.low_contrast});
     } else {
       spdlog::debug("vio: in-motion alignment odometry lost at {:.3f} s, restarting", t_ns * 1e-9);
       ResetMotionInit();
@@ -530,7 +531,8 @@ bool VioEstimator::MotionInitStep(const FramePacket& packet) {
     StateEstimate first;
     first.t_ns = t_ns;
     init_odometry_->Initialize(first, features.observations);
-    init_frames_.push_back({t_ns, first.world_from_body, features.observations, true});
+    init_frames_.push_back(
+        {t_ns, first.world_from_body, features.observations, true, features.stats.low_contrast});
     return false;
   }
   const int64_t first_ns = init_frames_.front().t_ns;
@@ -592,9 +594,12 @@ bool VioEstimator::MotionInitStep(const FramePacket& packet) {
   delayed_.push_back(FrameEstimate{backend_.Newest(), true, std::nullopt});
   for (size_t k = 1; k < init_frames_.size(); ++k) {
     const MotionInitFrame& f = init_frames_[k];
-    const StateEstimate e = backend_.AddFrame(
-        f.t_ns, Preintegrate(backend_imu_, times[k - 1], f.t_ns, backend_.Newest().bias),
-        f.observations, f.keyframe || k + 1 == init_frames_.size());
+    ImuPreintegration pre =
+        Preintegrate(backend_imu_, times[k - 1], f.t_ns, backend_.Newest().bias);
+    if (f.low_contrast && options_.lowcontrast_gyro_walk_scale != 1.0)
+      pre.ScaleGyroBiasWalk(options_.lowcontrast_gyro_walk_scale);
+    const StateEstimate e =
+        backend_.AddFrame(f.t_ns, pre, f.observations, f.keyframe || k + 1 == init_frames_.size());
     if (k + 1 < init_frames_.size()) delayed_.push_back(FrameEstimate{e, f.keyframe, std::nullopt});
   }
   ResetMotionInit();

@@ -79,17 +79,19 @@ struct VioOptions {
   // with the IMU; without it the car route drifts more with them (mean 4.5 m against 2.9 m with
   // Ceres' 1e4 and 1e-6, docs/VIO.md).
   double stereo_only_initial_trust_region_radius = 1e4;
-  // Stereo-inertial (YAML backend.lowcontrast_gyro_walk_scale): on frames the frontend finds low
-  // in contrast (frontend.clahe_below_std, when CLAHE, the stretch or the corner check is on),
-  // the gyro bias random walk from the previous frame is this times the IMU's (0 < scale <= 1;
-  // 1: as modelled): the bias held while the vision is weak, as an INS holds its bias estimates
-  // through an aiding outage. In dust the vision of faint texture pulls the vertical gyro bias
-  // and the yaw drifts with it; held at 0.3, the urban route's six dust 75-100 % runs (seeds 1-3)
-  // went from 3.43 to 2.49 m mean error (5 of 6 better; at 0.1 2.43 m, 5 of 6, the worse one
-  // by 0.61 m instead of 0.18 m), clear and fog unchanged: no low-contrast frames (docs/VIO.md,
-  // weather, 2026-12-02).
-  double lowcontrast_gyro_walk_scale = 0.3;
   double stereo_only_function_tolerance = 1e-6;
+  // Stereo-inertial (YAML backend.lowcontrast_gyro_walk_scale, in (0, 1]; 1: as modelled): on
+  // frames the frontend measures low in contrast (FrontendStats::low_contrast: the
+  // frontend.clahe_below_std state, when it is > 0 and CLAHE, the stretch or the corner check is
+  // on), the gyro bias random walk from the previous frame is this times the IMU's: the bias held
+  // while the vision is weak, as an INS holds its bias estimates through an aiding outage. In
+  // dust the vision of faint texture pulls the vertical gyro bias and the yaw drifts with it;
+  // held at 0.3, the urban route's six dust 75-100 % runs (seeds 1-3) went from 3.43 to 2.49 m
+  // mean error (5 of 6 better), clear and fog unchanged: no low-contrast frames (docs/VIO.md,
+  // weather, 2026-12-02). The IMU factor's 1e-12 regulariser on its covariance's diagonal is a
+  // floor under the held walk: over one 33 ms frame of the car's IMU, 0.3 acts as about 0.41,
+  // and 0.1 and 0.03 as 0.30 and 0.29.
+  double lowcontrast_gyro_walk_scale = 0.3;
   // Initialisation.
   double init_window_s = 0.5;  // IMU window checked for stillness, s
   // Stillness: standard deviation of the 0.1 s block means over the window.
@@ -274,6 +276,7 @@ class VioEstimator {
     Rigid3d vo_from_body;
     std::vector<StereoObservation> observations;
     bool keyframe = false;
+    bool low_contrast = false;  // FrontendStats::low_contrast
   };
   std::unique_ptr<SlidingWindowBackend> init_odometry_;
   std::vector<MotionInitFrame> init_frames_;

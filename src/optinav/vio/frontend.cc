@@ -323,7 +323,8 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
       if (left_std[0] > 1.25 * options_.clahe_below_std) low_contrast_ = false;
     }
   }
-  out.stats.low_contrast = low_contrast_;
+  // Measured low contrast (with clahe_below_std 0, CLAHE on every frame, nothing is measured).
+  out.stats.low_contrast = low_contrast_ && options_.clahe_below_std > 0;
   if (low_contrast_ && options_.clahe_clip_limit > 0) {
     if (!clahe_)
       clahe_ = cv::createCLAHE(options_.clahe_clip_limit,

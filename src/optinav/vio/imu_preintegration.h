@@ -88,7 +88,8 @@ class ImuPreintegration {
   // Covariance of (phi, v, p).
   const Matrix9d& covariance() const { return covariance_; }
   // 15x15 covariance of (phi, v, p, bias_gyro change, bias_accel change) over the interval:
-  // the preintegration block plus the bias random walk over dt.
+  // the preintegration block plus the bias random walk over dt (the gyro's over the samples'
+  // scaled time, sum of gyro_walk_scale^2 * dt_s).
   Matrix15d FullCovariance() const;
 
   const Eigen::Matrix3d& dR_dbg() const { return dR_dbg_; }

@@ -141,7 +141,9 @@ cv::Mat LocalContrastNormalise(const cv::Mat& grey, double sigma_px, double floo
 struct FrontendStats {
   int tracked = 0, rejected_fb = 0, rejected_ransac = 0, detected = 0, stereo = 0;
   double median_flow_px = 0;
-  bool low_contrast = false;  // the low-contrast state (clahe_below_std) of this frame
+  // The measured low-contrast state (clahe_below_std > 0, and CLAHE, the stretch or the corner
+  // check on) of this frame.
+  bool low_contrast = false;
 };
 
 struct FrontendOutput {
