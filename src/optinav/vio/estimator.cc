@@ -496,6 +496,11 @@ void VioEstimator::ResetMotionInit() {
   init_frames_.clear();
 }
 
+void VioEstimator::HoldGyroBiasIf(bool low_contrast, ImuPreintegration* pre) const {
+  if (low_contrast && options_.lowcontrast_gyro_walk_scale != 1.0)
+    pre->ScaleGyroBiasWalk(options_.lowcontrast_gyro_walk_scale);
+}
+
 bool VioEstimator::MotionInitStep(const FramePacket& packet) {
   const Timer timer;
   struct AddTime {
@@ -596,8 +601,7 @@ bool VioEstimator::MotionInitStep(const FramePacket& packet) {
     const MotionInitFrame& f = init_frames_[k];
     ImuPreintegration pre =
         Preintegrate(backend_imu_, times[k - 1], f.t_ns, backend_.Newest().bias);
-    if (f.low_contrast && options_.lowcontrast_gyro_walk_scale != 1.0)
-      pre.ScaleGyroBiasWalk(options_.lowcontrast_gyro_walk_scale);
+    HoldGyroBiasIf(f.low_contrast, &pre);
     const StateEstimate e =
         backend_.AddFrame(f.t_ns, pre, f.observations, f.keyframe || k + 1 == init_frames_.size());
     if (k + 1 < init_frames_.size()) delayed_.push_back(FrameEstimate{e, f.keyframe, std::nullopt});
@@ -719,8 +723,7 @@ std::optional<FrameEstimate> VioEstimator::RunBackend(FramePacket packet) {
         pre = Preintegrate(backend_imu_, *packet.prev_t_ns, t_ns, bias);
     }
     const FrontendOutput& features = packet.features;
-    if (features.stats.low_contrast && options_.lowcontrast_gyro_walk_scale != 1.0)
-      pre.ScaleGyroBiasWalk(options_.lowcontrast_gyro_walk_scale);
+    HoldGyroBiasIf(features.stats.low_contrast, &pre);
     StateEstimate estimate;
     {
       const Timer timer;

@@ -228,6 +228,9 @@ class VioEstimator {
   // One frame of the closed-form in-motion initialisation; true when it initialised the window.
   // On success the window is initialised at the first frame of the odometry run and every later
   // frame of the run (up to this one) is re-run through it with the IMU.
+  // The frame's preintegration with the gyro bias held (lowcontrast_gyro_walk_scale) when the
+  // frontend measured it low in contrast.
+  void HoldGyroBiasIf(bool low_contrast, ImuPreintegration* pre) const;
   bool MotionInitStep(const FramePacket& packet);
   void ResetMotionInit();
   void Lose(int64_t t_ns, const std::string& reason);

@@ -27,15 +27,11 @@ void ImuPreintegration::Reset() {
 void ImuPreintegration::Integrate(const Eigen::Vector3d& gyro, const Eigen::Vector3d& accel,
                                   double dt_s) {
   OPTINAV_CHECK(dt_s > 0);
-  measurements_.push_back({dt_s, gyro, accel});
-  Propagate(measurements_.back());
+  Add({dt_s, gyro, accel});
 }
 
 void ImuPreintegration::Append(const ImuPreintegration& next) {
-  for (const ImuMeasurement& m : next.measurements_) {
-    measurements_.push_back(m);
-    Propagate(m);
-  }
+  for (const ImuMeasurement& m : next.measurements_) Add(m);
 }
 
 void ImuPreintegration::Reintegrate(const ImuBias& linearization_bias) {
@@ -50,11 +46,15 @@ ImuPreintegration ImuPreintegration::Prefix(double duration_s) const {
   for (const ImuMeasurement& m : measurements_) {
     const double dt = std::min(m.dt_s, duration_s - t);
     if (dt <= 1e-12) break;
-    out.measurements_.push_back({dt, m.gyro, m.accel, m.gyro_walk_scale});
-    out.Propagate(out.measurements_.back());
+    out.Add({dt, m.gyro, m.accel, m.gyro_walk_scale});
     t += dt;
   }
   return out;
+}
+
+void ImuPreintegration::Add(const ImuMeasurement& m) {
+  measurements_.push_back(m);
+  Propagate(measurements_.back());
 }
 
 void ImuPreintegration::ScaleGyroBiasWalk(double scale) {

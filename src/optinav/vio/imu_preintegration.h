@@ -114,6 +114,7 @@ class ImuPreintegration {
  private:
   void Reset();
   void Propagate(const ImuMeasurement& m);
+  void Add(const ImuMeasurement& m);  // stored and propagated
 
   ImuBias bias_;
   ImuNoise noise_;
