@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <fstream>
 #include <map>
 
 #include <fmt/format.h>
@@ -16,6 +17,7 @@
 #include "optinav/util/logging.h"
 
 namespace optinav::app {
+namespace fs = std::filesystem;
 namespace {
 
 std::string StemOf(const std::string& path) {
@@ -52,12 +54,19 @@ void WriteWgs84(const Trajectory& enu, const Eigen::Vector3d& origin, const std:
   io::WriteFileAtomically(geojson_path, report::ToGeoJson({line}, {}));
 }
 
-// The pipeline's options from the settings (config file, mode, loop closure, GNSS input).
+// The pipeline's options from the settings (config file, mode, vehicle, loop closure, GNSS
+// input); `vehicle`: the motion model resolved.
 vio::VioRunOptions MakeRunOptions(const VioRunSettings& st,
-                                  std::optional<vio::GnssInput>* gnss_input) {
+                                  std::optional<vio::GnssInput>* gnss_input,
+                                  VehicleModel* vehicle) {
   vio::VioRunOptions options;
   if (!st.config_path.empty()) options.vio = vio::LoadVioOptions(st.config_path);
   if (st.mode) options.vio.mode = *st.mode;
+  *vehicle = ResolveVehicleModel(st.vehicle, st.dataset);
+  vio::BackendOptions& b = options.vio.backend;
+  if (*vehicle == VehicleModel::kGround && b.ground_vehicle_lateral_sigma_m_s == 0 &&
+      b.ground_vehicle_vertical_sigma_m_s == 0)
+    b.ground_vehicle_vertical_sigma_m_s = kGroundVehicleVerticalSigmaMs;
   // AirSim recordings have no IMU.
   if (st.format == VioDatasetFormat::kAirsim && !st.mode) options.vio.mode = vio::VioMode::kStereo;
   if (st.loop_closure) {
@@ -267,6 +276,39 @@ void WriteGnssReportDocument(const VioRunSettings& st, const vio::GnssInput& inp
 
 }  // namespace
 
+std::optional<VehicleModel> ParseVehicleModel(const std::string& name) {
+  if (name == "auto") return VehicleModel::kAuto;
+  if (name == "ground") return VehicleModel::kGround;
+  if (name == "free") return VehicleModel::kFree;
+  return std::nullopt;
+}
+
+const char* VehicleModelName(VehicleModel model) {
+  switch (model) {
+    case VehicleModel::kAuto:
+      return "auto";
+    case VehicleModel::kGround:
+      return "ground";
+    case VehicleModel::kFree:
+      break;
+  }
+  return "free";
+}
+
+VehicleModel ResolveVehicleModel(VehicleModel model, const std::string& dataset) {
+  if (model != VehicleModel::kAuto) return model;
+  const fs::path marker = fs::path(dataset) / "sim_complete.json";
+  std::ifstream in(marker);
+  if (!in) return VehicleModel::kFree;
+  try {
+    const nlohmann::json j = nlohmann::json::parse(in);
+    return j.value("route", std::string()) == "car" ? VehicleModel::kGround : VehicleModel::kFree;
+  } catch (const std::exception& e) {
+    throw Error(std::string("cannot read the simulator's route (--vehicle auto): ") + e.what(),
+                {.file = marker.string()});
+  }
+}
+
 std::string VioRunSettings::Check() const {
   if (dataset.empty()) return "--dataset must be given";
   if (out.empty()) return "--out must be given";
@@ -289,9 +331,11 @@ VioRunReport RunVioDataset(const VioRunSettings& st) {
   if (const std::string m = st.Check(); !m.empty()) throw Error(m);
   if (st.html) report::LoadLeafletAssets();  // missing: say so before the run, not after
   std::optional<vio::GnssInput> gnss_input;
-  const vio::VioRunOptions options = MakeRunOptions(st, &gnss_input);
+  VehicleModel vehicle = VehicleModel::kFree;
+  const vio::VioRunOptions options = MakeRunOptions(st, &gnss_input, &vehicle);
   VioRunReport report;
   report.mode = vio::VioModeName(options.vio.mode);
+  report.vehicle = VehicleModelName(vehicle);
   report.run = st.format == VioDatasetFormat::kAirsim ? vio::RunVioOnAirsim(st.dataset, options)
                                                       : vio::RunVioOnEuroc(st.dataset, options);
   if (report.run.estimates.empty())
@@ -313,6 +357,7 @@ nlohmann::json VioStatsJson(const VioRunReport& report) {
   const vio::VioRunResult& r = report.run;
   nlohmann::json j;
   j["mode"] = report.mode;
+  j["vehicle"] = report.vehicle;
   j["frame"] = report.frame;
   j["frames"] = r.frames_total;
   j["frames_processed"] = r.frames_processed;
@@ -384,10 +429,10 @@ std::string FormatVioSummary(const VioRunSettings& st, const VioRunReport& repor
   }
   const TimingSummary total = r.timing.count("total") ? r.timing.at("total") : TimingSummary{};
   s += fmt::format(
-      "vio {}: {} poses from {} stereo frames, {} lost interval(s), {} initialisation; per frame "
-      "median {:.1f} ms, p95 {:.1f} ms -> {}\n",
+      "vio {}: {} poses from {} stereo frames, {} lost interval(s), {} initialisation, {} "
+      "vehicle; per frame median {:.1f} ms, p95 {:.1f} ms -> {}\n",
       report.mode, r.estimates.size(), r.frames_total, r.lost.size(), r.first_init_kind,
-      total.median_s * 1e3, total.p95_s * 1e3, st.out);
+      report.vehicle, total.median_s * 1e3, total.p95_s * 1e3, st.out);
   return s;
 }
 

@@ -18,12 +18,28 @@ namespace optinav::app {
 
 enum class VioDatasetFormat { kEuroc, kAirsim };
 
+// The platform's motion model (`optinav vio --vehicle`). kGround: a wheeled ground vehicle, whose
+// body-frame vertical velocity is ~ N(0, (kGroundVehicleVerticalSigmaMs)^2) on every state
+// (vio::BackendOptions::ground_vehicle_vertical_sigma_m_s, stereo-imu only) unless the config sets
+// a ground-vehicle sigma itself. kFree: no motion model (a drone, a handheld rig). kAuto: kGround
+// when the dataset is a simulator car route (its sim_complete.json says "route": "car"), else
+// kFree. On a car the IMU cannot tell a slow vertical velocity error from none, and vision with
+// near points only (fog) lets the height drift (docs/VIO.md, weather, 2026-12-03).
+enum class VehicleModel { kAuto, kGround, kFree };
+inline constexpr double kGroundVehicleVerticalSigmaMs = 0.05;
+std::optional<VehicleModel> ParseVehicleModel(const std::string& name);  // auto|ground|free
+const char* VehicleModelName(VehicleModel model);
+// kAuto resolved for `dataset` (kGround or kFree); the others as given. Throws Error naming the
+// file when a sim_complete.json is there but unreadable.
+VehicleModel ResolveVehicleModel(VehicleModel model, const std::string& dataset);
+
 struct VioRunSettings {
   std::string dataset;  // sequence folder (holding mav0/, or an AirSim recording)
   VioDatasetFormat format = VioDatasetFormat::kEuroc;
-  std::string config_path;               // YAML vio::VioOptions; empty: the built-in defaults
-  std::optional<vio::VioMode> mode;      // nullopt: the config's (AirSim: stereo, it has no IMU)
-  std::optional<bool> loop_closure;      // nullopt: the config's for the mode
+  std::string config_path;           // YAML vio::VioOptions; empty: the built-in defaults
+  std::optional<vio::VioMode> mode;  // nullopt: the config's (AirSim: stereo, it has no IMU)
+  std::optional<bool> loop_closure;  // nullopt: the config's for the mode
+  VehicleModel vehicle = VehicleModel::kAuto;
   bool sequential = false;               // one thread, deterministic
   size_t max_frames = 0;                 // 0: all
   double injected_backend_delay_ms = 0;  // testing: vio::VioRunOptions::injected_backend_delay_ms
@@ -49,6 +65,7 @@ struct VioRunSettings {
 struct VioRunReport {
   vio::VioRunResult run;
   std::string mode;             // the mode that ran: "stereo-imu" | "stereo"
+  std::string vehicle;          // the motion model that ran: "ground" | "free"
   std::string frame = "world";  // of `out`: "world", or "enu" once GNSS aligned it
   // The GNSS side outputs as resolved (defaults beside `out`); live: empty when not written.
   std::string gnss_live_out, wgs84_out, gnss_rejected_out;

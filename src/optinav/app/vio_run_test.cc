@@ -98,6 +98,7 @@ TEST_F(VioRunTest, StereoInertialWritesTrajectoriesAndStats) {
   EXPECT_FALSE(j.contains("gnss"));
   EXPECT_EQ(j["poses"], r.run.estimates.size());
   EXPECT_EQ(j["frame"], "world");
+  EXPECT_EQ(j["vehicle"], "free");  // auto on a drone route
   EXPECT_TRUE(j["timing_per_frame"].contains("total"));
   const std::string summary = FormatVioSummary(st, r);
   EXPECT_EQ(summary.rfind(fmt::format("vio stereo-imu: {} poses from {} stereo frames, 0 lost",
@@ -154,6 +155,54 @@ TEST_F(VioRunTest, GnssFusionWritesEnuAndSideOutputs) {
   }
   EXPECT_EQ(rejected, r.run.gnss_stats.rejected);
   EXPECT_FALSE(r.html);  // only with --html
+}
+
+// --vehicle auto follows the simulator's route; an unreadable marker names the file.
+TEST(VioRunSettings, VehicleAutoFollowsTheSimulatorRoute) {
+  const fs::path dir = testing::MakeTempDir("app_vio_vehicle");
+  EXPECT_EQ(ResolveVehicleModel(VehicleModel::kAuto, dir.string()), VehicleModel::kFree);
+  const auto marker = [&](const std::string& text) {
+    testing::WriteFile((dir / "sim_complete.json").string(), text);
+  };
+  marker(R"({"generator": "optinav sim", "route": "car"})");
+  EXPECT_EQ(ResolveVehicleModel(VehicleModel::kAuto, dir.string()), VehicleModel::kGround);
+  EXPECT_EQ(ResolveVehicleModel(VehicleModel::kFree, dir.string()), VehicleModel::kFree);
+  marker(R"({"generator": "optinav sim", "route": "drone"})");
+  EXPECT_EQ(ResolveVehicleModel(VehicleModel::kAuto, dir.string()), VehicleModel::kFree);
+  EXPECT_EQ(ResolveVehicleModel(VehicleModel::kGround, dir.string()), VehicleModel::kGround);
+  marker("{\"route\": ");
+  try {
+    ResolveVehicleModel(VehicleModel::kAuto, dir.string());
+    ADD_FAILURE() << "a truncated marker was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("sim_complete.json"), std::string::npos) << e.what();
+  }
+  for (const char* name : {"auto", "ground", "free"})
+    EXPECT_STREQ(VehicleModelName(*ParseVehicleModel(name)), name);
+  EXPECT_FALSE(ParseVehicleModel("car"));
+  fs::remove_all(dir);
+}
+
+// --vehicle ground puts the vertical-velocity constraint into the window: the run says so and
+// its estimate differs from the free run's on the same frames.
+TEST_F(VioRunTest, GroundVehicleConstrainsTheRun) {
+  VioRunSettings st;
+  st.dataset = Dataset();
+  st.sequential = true;
+  st.max_frames = 90;
+  st.out = Out("vio_free.tum");
+  st.vehicle = VehicleModel::kFree;
+  const VioRunReport free = RunVioDataset(st);
+  st.out = Out("vio_ground.tum");
+  st.vehicle = VehicleModel::kGround;
+  const VioRunReport ground = RunVioDataset(st);
+  EXPECT_EQ(free.vehicle, "free");
+  EXPECT_EQ(ground.vehicle, "ground");
+  ASSERT_FALSE(free.run.estimates.empty());
+  ASSERT_EQ(free.run.estimates.size(), ground.run.estimates.size());
+  const Eigen::Vector3d a = free.run.estimates.back().state.world_from_body.translation;
+  const Eigen::Vector3d b = ground.run.estimates.back().state.world_from_body.translation;
+  EXPECT_GT((a - b).norm(), 1e-6);
 }
 
 TEST(VioRunSettings, CheckNamesTheFlag) {

@@ -164,6 +164,8 @@ nlohmann::json RunRecord(const WeatherRunResult& r, const WeatherBenchOptions& o
           {"duration_s", o.duration_s},
           {"max_frames", o.max_frames},
           {"vio_config", config_text},
+          {"vehicle_setting", VehicleModelName(o.vehicle)},
+          {"vehicle", r.vehicle},
           {"wall_s", r.wall_s},
           {"fps", r.fps},
           {"frames", r.frames},
@@ -191,6 +193,9 @@ bool LoadRun(const std::string& stem, const WeatherBenchOptions& o, const std::s
         throw Error(fmt::format("made with another {}", key), {.file = path});
     if (j.value("vio_config", std::string()) != config_text)
       throw Error("made with another --config", {.file = path});
+    if (j.value("vehicle_setting", std::string()) != VehicleModelName(o.vehicle))
+      throw Error("made with another --vehicle (or before the setting)", {.file = path});
+    r->vehicle = j.value("vehicle", std::string());
     r->wall_s = Number(j, "wall_s");
     r->fps = Number(j, "fps");
     r->frame_median_ms = Number(j, "frame_median_ms");
@@ -216,6 +221,7 @@ void RunVio(const Sequence& s, const std::string& stem, const WeatherBenchOption
   st.dataset = s.dir;
   st.mode = r->mode;
   st.config_path = o.vio_config;
+  st.vehicle = o.vehicle;
   st.max_frames = o.max_frames;
   st.out = stem + ".tum";
   st.odometry_out = stem + ".odometry.tum";
@@ -229,6 +235,7 @@ void RunVio(const Sequence& s, const std::string& stem, const WeatherBenchOption
   r->fps = v.frames_processed / r->wall_s;
   r->poses = v.estimates.size();
   r->loops = v.loops.size();
+  r->vehicle = report.vehicle;
   if (v.timing.count("total")) {
     r->frame_median_ms = v.timing.at("total").median_s * 1e3;
     r->frame_p95_ms = v.timing.at("total").p95_s * 1e3;

@@ -23,6 +23,7 @@
 
 #include "optinav/app/html_report.h"
 #include "optinav/app/slurm_plan.h"
+#include "optinav/app/vio_run.h"
 #include "optinav/geometry/trajectory.h"
 #include "optinav/sim/weather.h"
 #include "optinav/sim/world.h"
@@ -66,6 +67,9 @@ struct WeatherBenchOptions {
   // YAML vio::VioOptions for every run (as `optinav vio --config`); empty: the built-in defaults.
   // Its text is recorded with each run, and --reuse keeps only runs made with the same text.
   std::string vio_config;
+  // The motion model of every run (as `optinav vio --vehicle`); auto: a car on these routes.
+  // Recorded with each run; --reuse keeps only runs made with the same setting.
+  VehicleModel vehicle = VehicleModel::kAuto;
   double duration_s = 0;  // seconds of the car route to render (0: all of it); tests
   size_t max_frames = 0;  // frames the VIO processes (0: all); tests
   // A planned sweep (app/slurm_plan.h). task >= 0: only that task of WeatherBenchTasks() (one
@@ -107,6 +111,7 @@ struct WeatherRunResult {
   double frame_median_ms = NAN, frame_p95_ms = NAN;  // the VIO's work per frame ("total")
   double wall_s = NAN, path_length_m = NAN;
   size_t frames = 0, poses = 0, loops = 0;
+  std::string vehicle;    // the motion model the run resolved: "ground" | "free"
   double coverage = NAN;  // poses matched to the ground truth / ground-truth frames
   std::vector<WeatherLost> lost;
   // For the HTML report: the ground truth and the output with its first pose put on the truth's

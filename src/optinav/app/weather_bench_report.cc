@@ -66,12 +66,13 @@ std::string LostCell(const WeatherCell& c, const Runs& runs, int seeds) {
 std::string WeatherBenchTable(const WeatherBenchOptions& o, const Cells& cells, const Runs& runs) {
   std::string t = fmt::format(
       "Mean localization error after the start pose (m; the weather document's metric), car "
-      "route, {} (scale {:g}), `optinav vio` threaded{}; seeds 1..{}{}.\n"
+      "route, {} (scale {:g}), `optinav vio` threaded, --vehicle {}{}; seeds 1..{}{}.\n"
       "x clear: the condition's error over clear's (same world and mode). lost: the VIO "
       "reported tracking lost (the document: local map lost). ORB-SLAM3: stereo, 800x600, the "
       "weather document (SEEDS.md part 1).\n\n",
-      ImageSize(o), o.scale, o.duration_s > 0 ? fmt::format(", first {:g} s", o.duration_s) : "",
-      o.seeds, o.seeds > 1 ? " (mean [max] over seeds)" : "");
+      ImageSize(o), o.scale, VehicleModelName(o.vehicle),
+      o.duration_s > 0 ? fmt::format(", first {:g} s", o.duration_s) : "", o.seeds,
+      o.seeds > 1 ? " (mean [max] over seeds)" : "");
   t += "| world | condition | mode | mean error (m) | x clear | odometry (m) | APE SE(3) (m) | "
        "lost | fps | ORB-SLAM3 (m) | x clear |\n"
        "|---|---|---|---:|---:|---:|---:|---|---:|---:|---:|\n";
@@ -116,6 +117,7 @@ nlohmann::json RunJson(const WeatherRunResult& r) {
           {"condition", r.condition.ToString()},
           {"mode", vio::VioModeName(r.mode)},
           {"seed", r.seed},
+          {"vehicle", r.vehicle},
           {"ok", r.ok},
           {"error", r.error},
           {"mean_error_m", Num(r.mean_error_m)},
@@ -174,6 +176,7 @@ nlohmann::json WeatherBenchJson(const WeatherBenchOptions& o, const WeatherBench
                    {"jobs", o.jobs},
                    {"duration_s", o.duration_s},
                    {"max_frames", o.max_frames},
+                   {"vehicle", VehicleModelName(o.vehicle)},
                    {"vio", "threaded"}};
   j["cells"] = nlohmann::json::array();
   for (const WeatherCell& c : result.cells) j["cells"].push_back(CellJson(c));

@@ -15,7 +15,7 @@ namespace {
 
 // The flags that are names, numbers with an "unset" value or lists, resolved after parsing.
 struct VioFlags {
-  std::string format = "euroc", mode, loop_closure;
+  std::string format = "euroc", mode, loop_closure, vehicle = "auto";
   std::string gnss_format = "auto", gnss_norm = "huber", gnss_origin, gnss_lever_arm;
   double gnss_sigma = -1;
   cli::GnssFusionFlags fusion;
@@ -36,6 +36,11 @@ void AddRunOptions(CLI::App& cmd, app::VioRunSettings* st, VioFlags* f) {
       cmd.add_option("--stats", st->stats_path,
                      "timing per module (median, p95 per frame) and lost intervals, JSON"));
   cmd.add_option("--mode", f->mode, "stereo-imu|stereo (default: the config's, else stereo-imu)");
+  cmd.add_option("--vehicle", f->vehicle,
+                 "auto|ground|free: ground: a wheeled vehicle's body-frame vertical velocity held "
+                 "near 0 (stereo-imu; unless the config sets a backend.ground_vehicle_* sigma); "
+                 "auto: ground on a simulator car route (sim_complete.json), else free")
+      ->capture_default_str();
   cmd.add_option("--loop-closure", f->loop_closure,
                  "on|off: close loops with earlier keyframes and correct the output (default: "
                  "the config's: on in both modes; never with --gnss)");
@@ -122,6 +127,10 @@ void Resolve(const VioFlags& f, app::VioRunSettings* st) {
     if (!st->mode)
       throw cli::UsageError("unknown mode '" + f.mode + "' (stereo-imu|stereo)", "--mode");
   }
+  const std::optional<app::VehicleModel> vehicle = app::ParseVehicleModel(f.vehicle);
+  if (!vehicle)
+    throw cli::UsageError("unknown vehicle '" + f.vehicle + "' (auto|ground|free)", "--vehicle");
+  st->vehicle = *vehicle;
   if (!f.loop_closure.empty()) {
     if (f.loop_closure != "on" && f.loop_closure != "off")
       throw cli::UsageError("expected on or off, got '" + f.loop_closure + "'", "--loop-closure");

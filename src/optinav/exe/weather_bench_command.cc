@@ -17,7 +17,7 @@ namespace {
 // The flags that are lists, resolved after parsing ("" conditions: the suite's, per world).
 struct WeatherFlags {
   std::string worlds = "urban,terrain", conditions, modes = "stereo";
-  std::string plan, slurm_args;
+  std::string plan, slurm_args, vehicle = "auto";
 };
 
 void AddFlags(CLI::App& app, app::WeatherBenchOptions* o, WeatherFlags* f) {
@@ -39,6 +39,10 @@ void AddFlags(CLI::App& app, app::WeatherBenchOptions* o, WeatherFlags* f) {
                "in a planned folder: merge the tasks' runs)");
   app.add_option("--config", o->vio_config,
                  "YAML vio options for every run (as `optinav vio --config`; default: built in)");
+  app.add_option("--vehicle", f->vehicle,
+                 "auto|ground|free: the motion model of every run (as `optinav vio --vehicle`; "
+                 "auto: ground on the car route)")
+      ->capture_default_str();
   app.add_option("--duration", o->duration_s, "seconds of the car route (0: all of it)")
       ->capture_default_str();
   app.add_option(
@@ -51,6 +55,10 @@ void AddFlags(CLI::App& app, app::WeatherBenchOptions* o, WeatherFlags* f) {
 }
 
 void ApplyFlags(const WeatherFlags& f, app::WeatherBenchOptions* o) {
+  const std::optional<app::VehicleModel> vehicle = app::ParseVehicleModel(f.vehicle);
+  if (!vehicle)
+    throw cli::UsageError("unknown vehicle '" + f.vehicle + "' (auto|ground|free)", "--vehicle");
+  o->vehicle = *vehicle;
   try {
     app::ParseWeatherBenchLists(f.worlds, f.conditions, f.modes, o);
   } catch (const Error& e) {
