@@ -63,6 +63,12 @@ vio::VioRunOptions MakeRunOptions(const VioRunSettings& st,
   if (!st.config_path.empty()) options.vio = vio::LoadVioOptions(st.config_path);
   if (st.mode) options.vio.mode = *st.mode;
   *vehicle = ResolveVehicleModel(st.vehicle, st.dataset);
+  if (options.vio.mode == vio::VioMode::kStereo && *vehicle == VehicleModel::kGround) {
+    // Stereo-only states have no velocity to constrain.
+    if (st.vehicle == VehicleModel::kGround)
+      spdlog::warn("--vehicle ground has no effect in stereo mode (no velocity states)");
+    *vehicle = VehicleModel::kFree;
+  }
   vio::BackendOptions& b = options.vio.backend;
   if (*vehicle == VehicleModel::kGround && b.ground_vehicle_lateral_sigma_m_s == 0 &&
       b.ground_vehicle_vertical_sigma_m_s == 0)

@@ -324,6 +324,7 @@ cmp -s "$WORK/vio3.tum" "$WORK/vio3_odo.tum" || fail "vio stereo-only: no loop, 
 expect_error "vio bad --loop-closure" "expected on or off" "$BIN" vio --dataset "$MICRO" --out "$WORK/x.tum" --loop-closure maybe
 expect_error "vio missing dataset" "dataset folder not found" "$BIN" vio --dataset "$WORK/nope" --out "$WORK/x.tum"
 expect_error "vio bad mode" "unknown mode" "$BIN" vio --dataset "$MICRO" --out "$WORK/x.tum" --mode mono
+expect_error "vio bad vehicle" "unknown vehicle 'car'" "$BIN" vio --dataset "$MICRO" --out "$WORK/x.tum" --vehicle car
 expect_error "vio airsim on a EuRoC folder" "airsim_rec.txt" "$BIN" vio --dataset "$MICRO" --out "$WORK/x.tum" --format airsim
 expect_error "vio airsim with IMU mode" "no IMU" "$BIN" vio --dataset "$MICRO" --out "$WORK/x.tum" --format airsim --mode stereo-imu
 "$BIN" sim --world urban --route car --duration 3 --scale 0.5 --format airsim --out "$WORK/airsim" >/dev/null 2>&1 || fail "sim airsim"
@@ -567,6 +568,8 @@ expect_exit 2 "bench weather unknown world" "field '--worlds': unknown world 'mo
   "$BIN" bench weather --out "$WORK/bw" --worlds urban,moon
 expect_exit 2 "bench weather unknown mode" "field '--modes': unknown mode 'mono'" \
   "$BIN" bench weather --out "$WORK/bw" --modes mono
+expect_exit 2 "bench weather unknown vehicle" "field '--vehicle': unknown vehicle 'boat'" \
+  "$BIN" bench weather --out "$WORK/bw" --vehicle boat
 expect_exit 2 "bench weather seeds" "field '--seeds': must be >= 1" \
   "$BIN" bench weather --out "$WORK/bw" --seeds 0
 expect_exit 2 "bench weather jobs" "field '--jobs': must be >= 1" \
