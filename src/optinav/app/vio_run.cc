@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <filesystem>
-#include <fstream>
 #include <map>
 
 #include <fmt/format.h>
@@ -62,6 +61,9 @@ vio::VioRunOptions MakeRunOptions(const VioRunSettings& st,
   vio::VioRunOptions options;
   if (!st.config_path.empty()) options.vio = vio::LoadVioOptions(st.config_path);
   if (st.mode) options.vio.mode = *st.mode;
+  // AirSim recordings have no IMU.
+  if (st.format == VioDatasetFormat::kAirsim && !st.mode) options.vio.mode = vio::VioMode::kStereo;
+  // After the mode is settled: an AirSim recording runs stereo-only.
   *vehicle = ResolveVehicleModel(st.vehicle, st.dataset);
   if (options.vio.mode == vio::VioMode::kStereo && *vehicle == VehicleModel::kGround) {
     // Stereo-only states have no velocity to constrain.
@@ -73,8 +75,6 @@ vio::VioRunOptions MakeRunOptions(const VioRunSettings& st,
   if (*vehicle == VehicleModel::kGround && b.ground_vehicle_lateral_sigma_m_s == 0 &&
       b.ground_vehicle_vertical_sigma_m_s == 0)
     b.ground_vehicle_vertical_sigma_m_s = kGroundVehicleVerticalSigmaMs;
-  // AirSim recordings have no IMU.
-  if (st.format == VioDatasetFormat::kAirsim && !st.mode) options.vio.mode = vio::VioMode::kStereo;
   if (st.loop_closure) {
     (options.vio.mode == vio::VioMode::kStereo ? options.vio.loop_closure.stereo_only
                                                : options.vio.loop_closure.stereo_imu) =
@@ -304,10 +304,9 @@ const char* VehicleModelName(VehicleModel model) {
 VehicleModel ResolveVehicleModel(VehicleModel model, const std::string& dataset) {
   if (model != VehicleModel::kAuto) return model;
   const fs::path marker = fs::path(dataset) / "sim_complete.json";
-  std::ifstream in(marker);
-  if (!in) return VehicleModel::kFree;
+  if (!fs::is_regular_file(marker)) return VehicleModel::kFree;
   try {
-    const nlohmann::json j = nlohmann::json::parse(in);
+    const nlohmann::json j = nlohmann::json::parse(io::ReadFileToString(marker.string()));
     return j.value("route", std::string()) == "car" ? VehicleModel::kGround : VehicleModel::kFree;
   } catch (const std::exception& e) {
     throw Error(std::string("cannot read the simulator's route (--vehicle auto): ") + e.what(),

@@ -66,4 +66,10 @@ void ParseFrameSize(const std::string& text, const std::string& option, int min_
   }
 }
 
+app::VehicleModel ParseVehicle(const std::string& text, const std::string& option) {
+  const std::optional<app::VehicleModel> vehicle = app::ParseVehicleModel(text);
+  if (!vehicle) throw cli::UsageError("unknown vehicle '" + text + "' (auto|ground|free)", option);
+  return *vehicle;
+}
+
 }  // namespace optinav

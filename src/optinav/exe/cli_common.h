@@ -7,6 +7,7 @@
 
 #include <Eigen/Core>
 
+#include "optinav/app/vio_run.h"
 #include "optinav/geo/geo.h"
 
 namespace optinav {
@@ -29,5 +30,8 @@ std::vector<double> ParseNumberList(const std::string& text, const std::string& 
 // options' Check() judges the size).
 void ParseFrameSize(const std::string& text, const std::string& option, int min_side, int* width,
                     int* height);
+
+// "auto|ground|free" -> the VIO's motion model (app::ParseVehicleModel).
+app::VehicleModel ParseVehicle(const std::string& text, const std::string& option);
 
 }  // namespace optinav

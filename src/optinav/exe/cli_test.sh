@@ -328,7 +328,10 @@ expect_error "vio bad vehicle" "unknown vehicle 'car'" "$BIN" vio --dataset "$MI
 expect_error "vio airsim on a EuRoC folder" "airsim_rec.txt" "$BIN" vio --dataset "$MICRO" --out "$WORK/x.tum" --format airsim
 expect_error "vio airsim with IMU mode" "no IMU" "$BIN" vio --dataset "$MICRO" --out "$WORK/x.tum" --format airsim --mode stereo-imu
 "$BIN" sim --world urban --route car --duration 3 --scale 0.5 --format airsim --out "$WORK/airsim" >/dev/null 2>&1 || fail "sim airsim"
-expect_ok "vio airsim stereo-only" "$BIN" vio --dataset "$WORK/airsim" --format airsim --out "$WORK/airsim.tum"
+expect_ok "vio airsim stereo-only" "$BIN" vio --dataset "$WORK/airsim" --format airsim --out "$WORK/airsim.tum" \
+  --stats "$WORK/airsim.json"
+# A car route, but stereo-only: no velocity for the ground-vehicle model to constrain.
+grep -q '"vehicle": "free"' "$WORK/airsim.json" || fail "vio airsim stereo-only: vehicle model not free"
 [[ $(grep -vc '^#' "$WORK/airsim.tum") -ge 50 ]] || fail "vio airsim wrote fewer than 50 poses"
 printf 'frontend:\n  max_featurez: 100\n' > "$WORK/bad.yaml"
 expect_error "vio unknown config key" "max_featurez" "$BIN" vio --dataset "$MICRO" --out "$WORK/x.tum" --config "$WORK/bad.yaml"

@@ -127,10 +127,7 @@ void Resolve(const VioFlags& f, app::VioRunSettings* st) {
     if (!st->mode)
       throw cli::UsageError("unknown mode '" + f.mode + "' (stereo-imu|stereo)", "--mode");
   }
-  const std::optional<app::VehicleModel> vehicle = app::ParseVehicleModel(f.vehicle);
-  if (!vehicle)
-    throw cli::UsageError("unknown vehicle '" + f.vehicle + "' (auto|ground|free)", "--vehicle");
-  st->vehicle = *vehicle;
+  st->vehicle = ParseVehicle(f.vehicle, "--vehicle");
   if (!f.loop_closure.empty()) {
     if (f.loop_closure != "on" && f.loop_closure != "off")
       throw cli::UsageError("expected on or off, got '" + f.loop_closure + "'", "--loop-closure");

@@ -7,6 +7,7 @@
 
 #include "optinav/app/slurm_plan.h"
 #include "optinav/app/weather_bench.h"
+#include "optinav/exe/cli_common.h"
 #include "optinav/exe/cli_runner.h"
 #include "optinav/exe/commands.h"
 #include "optinav/util/error.h"
@@ -55,10 +56,7 @@ void AddFlags(CLI::App& app, app::WeatherBenchOptions* o, WeatherFlags* f) {
 }
 
 void ApplyFlags(const WeatherFlags& f, app::WeatherBenchOptions* o) {
-  const std::optional<app::VehicleModel> vehicle = app::ParseVehicleModel(f.vehicle);
-  if (!vehicle)
-    throw cli::UsageError("unknown vehicle '" + f.vehicle + "' (auto|ground|free)", "--vehicle");
-  o->vehicle = *vehicle;
+  o->vehicle = ParseVehicle(f.vehicle, "--vehicle");
   try {
     app::ParseWeatherBenchLists(f.worlds, f.conditions, f.modes, o);
   } catch (const Error& e) {
