@@ -75,6 +75,11 @@ vio::VioRunOptions MakeRunOptions(const VioRunSettings& st,
   if (*vehicle == VehicleModel::kGround && b.ground_vehicle_lateral_sigma_m_s == 0 &&
       b.ground_vehicle_vertical_sigma_m_s == 0)
     b.ground_vehicle_vertical_sigma_m_s = kGroundVehicleVerticalSigmaMs;
+  if (*vehicle == VehicleModel::kGround && b.predicted_gate_pixels == 0) {
+    b.predicted_gate_pixels = kGroundVehicleGatePixels;
+    if (b.predicted_gate_median_factor == 0)
+      b.predicted_gate_median_factor = kGroundVehicleGateMedianFactor;
+  }
   if (st.loop_closure) {
     (options.vio.mode == vio::VioMode::kStereo ? options.vio.loop_closure.stereo_only
                                                : options.vio.loop_closure.stereo_imu) =
@@ -341,6 +346,10 @@ VioRunReport RunVioDataset(const VioRunSettings& st) {
   VioRunReport report;
   report.mode = vio::VioModeName(options.vio.mode);
   report.vehicle = VehicleModelName(vehicle);
+  if (options.vio.mode == vio::VioMode::kStereoImu) {
+    report.predicted_gate_px = options.vio.backend.predicted_gate_pixels;
+    report.predicted_gate_median_factor = options.vio.backend.predicted_gate_median_factor;
+  }
   report.run = st.format == VioDatasetFormat::kAirsim ? vio::RunVioOnAirsim(st.dataset, options)
                                                       : vio::RunVioOnEuroc(st.dataset, options);
   if (report.run.estimates.empty())
@@ -363,6 +372,8 @@ nlohmann::json VioStatsJson(const VioRunReport& report) {
   nlohmann::json j;
   j["mode"] = report.mode;
   j["vehicle"] = report.vehicle;
+  j["predicted_gate"] = {{"pixels", report.predicted_gate_px},
+                         {"median_factor", report.predicted_gate_median_factor}};
   j["frame"] = report.frame;
   j["frames"] = r.frames_total;
   j["frames_processed"] = r.frames_processed;

@@ -24,9 +24,16 @@ enum class VioDatasetFormat { kEuroc, kAirsim };
 // a ground-vehicle sigma itself. kFree: no motion model (a drone, a handheld rig). kAuto: kGround
 // when the dataset is a simulator car route (its sim_complete.json says "route": "car"), else
 // kFree. On a car the IMU cannot tell a slow vertical velocity error from none, and vision with
-// near points only (fog) lets the height drift (docs/VIO.md, weather, 2026-12-03).
+// near points only (fog) lets the height drift (docs/VIO.md, weather, 2026-12-03). kGround also
+// gates the landmarks on the IMU-predicted pose (vio::BackendOptions::predicted_gate_pixels
+// kGroundVehicleGatePixels, widened to kGroundVehicleGateMedianFactor x the frame's median
+// predicted error) unless the config sets a gate: falling leaves and snow drift through the
+// scene with the wind, and a car's smooth motion is predicted well enough to tell them apart
+// (measured on the simulator's car routes only, docs/VIO.md, weather, 2026-12-03 later).
 enum class VehicleModel { kAuto, kGround, kFree };
 inline constexpr double kGroundVehicleVerticalSigmaMs = 0.05;
+inline constexpr double kGroundVehicleGatePixels = 2.0;
+inline constexpr double kGroundVehicleGateMedianFactor = 2.0;
 std::optional<VehicleModel> ParseVehicleModel(const std::string& name);  // auto|ground|free
 const char* VehicleModelName(VehicleModel model);
 // kAuto resolved for `dataset` (kGround or kFree); the others as given. Throws Error naming the
@@ -64,8 +71,10 @@ struct VioRunSettings {
 
 struct VioRunReport {
   vio::VioRunResult run;
-  std::string mode;             // the mode that ran: "stereo-imu" | "stereo"
-  std::string vehicle;          // the motion model that ran: "ground" | "free"
+  std::string mode;     // the mode that ran: "stereo-imu" | "stereo"
+  std::string vehicle;  // the motion model that ran: "ground" | "free"
+  // The gate on the IMU-predicted pose that ran (vio::BackendOptions::predicted_gate_*; 0: off).
+  double predicted_gate_px = 0, predicted_gate_median_factor = 0;
   std::string frame = "world";  // of `out`: "world", or "enu" once GNSS aligned it
   // The GNSS side outputs as resolved (defaults beside `out`); live: empty when not written.
   std::string gnss_live_out, wgs84_out, gnss_rejected_out;

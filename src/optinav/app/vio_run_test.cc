@@ -198,6 +198,11 @@ TEST_F(VioRunTest, GroundVehicleConstrainsTheRun) {
   const VioRunReport ground = RunVioDataset(st);
   EXPECT_EQ(free.vehicle, "free");
   EXPECT_EQ(ground.vehicle, "ground");
+  // The ground vehicle's default gate on the IMU-predicted pose; none without a vehicle model.
+  EXPECT_EQ(free.predicted_gate_px, 0.0);
+  EXPECT_EQ(ground.predicted_gate_px, kGroundVehicleGatePixels);
+  EXPECT_EQ(ground.predicted_gate_median_factor, kGroundVehicleGateMedianFactor);
+  EXPECT_EQ(VioStatsJson(ground)["predicted_gate"]["pixels"], kGroundVehicleGatePixels);
   ASSERT_FALSE(free.run.estimates.empty());
   ASSERT_EQ(free.run.estimates.size(), ground.run.estimates.size());
   const Eigen::Vector3d a = free.run.estimates.back().state.world_from_body.translation;

@@ -38,8 +38,10 @@ void AddRunOptions(CLI::App& cmd, app::VioRunSettings* st, VioFlags* f) {
   cmd.add_option("--mode", f->mode, "stereo-imu|stereo (default: the config's, else stereo-imu)");
   cmd.add_option("--vehicle", f->vehicle,
                  "auto|ground|free: ground: a wheeled vehicle's body-frame vertical velocity held "
-                 "near 0 (stereo-imu; unless the config sets a backend.ground_vehicle_* sigma); "
-                 "auto: ground on a simulator car route (sim_complete.json), else free")
+                 "near 0 and landmarks gated on the IMU-predicted pose (2 px, or 2x the frame's "
+                 "median error; stereo-imu; unless the config sets a backend.ground_vehicle_* "
+                 "sigma or backend.predicted_gate_pixels); auto: ground on a simulator car route "
+                 "(sim_complete.json), else free")
       ->capture_default_str();
   cmd.add_option("--loop-closure", f->loop_closure,
                  "on|off: close loops with earlier keyframes and correct the output (default: "

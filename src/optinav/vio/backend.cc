@@ -69,6 +69,7 @@ std::string BackendOptions::Check() const {
     return "need 0 < min_depth_m < max_depth_m";
   if (!(stereo_only_outlier_pixels >= 0)) return "stereo_only_outlier_pixels must be >= 0";
   if (!(predicted_gate_pixels >= 0)) return "predicted_gate_pixels must be >= 0";
+  if (!(predicted_gate_median_factor >= 0)) return "predicted_gate_median_factor must be >= 0";
   if (!(ground_vehicle_lateral_sigma_m_s >= 0) || !(ground_vehicle_vertical_sigma_m_s >= 0))
     return "ground_vehicle_lateral_sigma_m_s and ground_vehicle_vertical_sigma_m_s must be >= 0 "
            "(0: off)";
@@ -728,14 +729,25 @@ void SlidingWindowBackend::RejectLandmarks(const std::set<uint64_t>& ids) {
 }
 
 void SlidingWindowBackend::GateOnPrediction(const State& state) {
-  std::set<uint64_t> bad;
   const Rigid3d body_from_world = state.WorldFromBody().Inverse();
+  std::vector<std::pair<uint64_t, double>> errors;
   for (const auto& [id, obs] : state.observations) {
     const Landmark& landmark = *landmarks_.at(id);
-    if (landmark.initialized &&
-        ReprojectionErrorPx(body_from_world, landmark, obs) > options_.predicted_gate_pixels)
-      bad.insert(id);
+    if (landmark.initialized)
+      errors.emplace_back(id, ReprojectionErrorPx(body_from_world, landmark, obs));
   }
+  double gate = options_.predicted_gate_pixels;
+  if (options_.predicted_gate_median_factor > 0 && !errors.empty()) {
+    std::vector<double> values;
+    values.reserve(errors.size());
+    for (const auto& [id, e] : errors) values.push_back(e);
+    auto mid = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
+    std::nth_element(values.begin(), mid, values.end());
+    gate = std::max(gate, options_.predicted_gate_median_factor * *mid);
+  }
+  std::set<uint64_t> bad;
+  for (const auto& [id, e] : errors)
+    if (e > gate) bad.insert(id);
   RejectLandmarks(bad);
   stats_.num_gated = static_cast<int>(bad.size());
 }

@@ -57,6 +57,12 @@ struct BackendOptions {
   // 4.90 m), so it is off by default (docs/VIO.md, weather). Unused without IMU: a
   // constant-velocity prediction rejected the scene in a turn and the estimate diverged.
   double predicted_gate_pixels = 0.0;
+  // With predicted_gate_pixels > 0: the gate widens to this many times the median of the new
+  // frame's predicted reprojection errors when that is larger (0: the fixed gate only). An IMU
+  // prediction that is off moves every landmark the same way and the median with it; particles
+  // are a minority moving against the scene, so a relative gate keeps the scene in a turn or a
+  // jolt and still rejects them.
+  double predicted_gate_median_factor = 0.0;
   // With IMU: a wheeled ground vehicle's non-holonomic constraint on every state, its body-frame
   // velocity's sideways (y) and vertical (z) components ~ N(0, sigma^2) (m/s; 0: that component
   // unconstrained; both 0: off, the default). For a body frame with x forward and its origin near

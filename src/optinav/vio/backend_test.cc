@@ -146,6 +146,8 @@ TEST(Backend, PredictedGateRejectsDriftingParticles) {
   const RunResult ungated = RunBackend(scene, frames, options, 1);
   options.predicted_gate_pixels = 2.0;
   const RunResult gated = RunBackend(scene, frames, options, 1);
+  options.predicted_gate_median_factor = 3.0;  // the gate relative to the frame's median error
+  const RunResult relative = RunBackend(scene, frames, options, 1);
   const double deg = 180 / M_PI;
   std::printf(
       "%zu particles among the room's tracks: max rotation error without the gate %.3f deg, "
@@ -157,6 +159,38 @@ TEST(Backend, PredictedGateRejectsDriftingParticles) {
   EXPECT_LT(gated.max_rotation_error_rad, 0.5 * ungated.max_rotation_error_rad);
   EXPECT_LT(gated.max_rotation_error_rad, 2.0 * clean.max_rotation_error_rad);
   EXPECT_LT(gated.position_rmse_m, ungated.position_rmse_m);
+  // The particles are a minority: the median stays on the scene and the relative gate is the
+  // fixed one here.
+  std::printf("relative gate (3 x median): max rotation error %.3f deg, position RMSE %.4f m\n",
+              relative.max_rotation_error_rad * deg, relative.position_rmse_m);
+  EXPECT_LT(relative.max_rotation_error_rad, 0.5 * ungated.max_rotation_error_rad);
+  EXPECT_LT(relative.max_rotation_error_rad, 2.0 * clean.max_rotation_error_rad);
+  EXPECT_LT(relative.position_rmse_m, ungated.position_rmse_m);
+}
+
+TEST(Backend, RelativePredictedGateKeepsTheSceneWhenThePredictionIsOff) {
+  // An unknown gyro bias of 0.15 rad/s (initialised at zero) turns the IMU prediction by 5 mrad
+  // per frame, 2.3 px at this focal length: the fixed 2 px gate rejects most of the scene until
+  // the bias is estimated; widened to 3 x the frame's median predicted error it keeps it.
+  SyntheticScene scene;
+  scene.true_bias.gyro = {0.02, -0.03, 0.15};
+  const auto frames = scene.Generate(6.0, 30.0, 0.3, true, 7);
+  BackendOptions options;
+  const RunResult ungated = RunBackend(scene, frames, options, 1);
+  options.predicted_gate_pixels = 2.0;
+  const RunResult fixed = RunBackend(scene, frames, options, 1);
+  options.predicted_gate_median_factor = 3.0;
+  const RunResult relative = RunBackend(scene, frames, options, 1);
+  const double deg = 180 / M_PI;
+  std::printf(
+      "gyro bias 0.15 rad/s unknown: max rotation error without the gate %.3f deg, fixed 2 px "
+      "%.3f deg, relative %.3f deg; position RMSE %.4f / %.4f / %.4f m\n",
+      ungated.max_rotation_error_rad * deg, fixed.max_rotation_error_rad * deg,
+      relative.max_rotation_error_rad * deg, ungated.position_rmse_m, fixed.position_rmse_m,
+      relative.position_rmse_m);
+  EXPECT_LT(relative.position_rmse_m, 1.5 * ungated.position_rmse_m);
+  EXPECT_LT(relative.max_rotation_error_rad, 1.5 * ungated.max_rotation_error_rad);
+  EXPECT_LT(relative.position_rmse_m, 0.5 * fixed.position_rmse_m);
 }
 
 struct PositionFunctor {

@@ -124,6 +124,7 @@ VioOptions LoadVioOptions(const std::string& path) {
         {"huber_pixels", &b.huber_pixels},
         {"outlier_pixels", &b.outlier_pixels},
         {"predicted_gate_pixels", &b.predicted_gate_pixels},
+        {"predicted_gate_median_factor", &b.predicted_gate_median_factor},
         {"ground_vehicle_lateral_sigma_m_s", &b.ground_vehicle_lateral_sigma_m_s},
         {"ground_vehicle_vertical_sigma_m_s", &b.ground_vehicle_vertical_sigma_m_s},
         {"stereo_only_outlier_pixels", &o.stereo_only_outlier_pixels},

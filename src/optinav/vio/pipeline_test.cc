@@ -616,6 +616,7 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(file.backend.huber_pixels, d.backend.huber_pixels);
   EXPECT_EQ(file.backend.outlier_pixels, d.backend.outlier_pixels);
   EXPECT_EQ(file.backend.predicted_gate_pixels, d.backend.predicted_gate_pixels);
+  EXPECT_EQ(file.backend.predicted_gate_median_factor, d.backend.predicted_gate_median_factor);
   EXPECT_EQ(file.backend.ground_vehicle_lateral_sigma_m_s,
             d.backend.ground_vehicle_lateral_sigma_m_s);
   EXPECT_EQ(file.backend.ground_vehicle_vertical_sigma_m_s,
