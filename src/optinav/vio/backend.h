@@ -54,7 +54,8 @@ struct BackendOptions {
   // through it, all the same way (the wind), and bent the stereo-inertial yaw past the Huber
   // loss: on the car route 2 px cut the mean error in snow 7.9 -> 3.3 m and in leaves 15.0 ->
   // 3.3 m, but moved the other conditions both ways (clear 0.86 -> 1.53 m, fog 100 % 2.47 ->
-  // 4.90 m), so it is off by default (docs/VIO.md, weather). Unused without IMU: a
+  // 4.90 m), so it is off here; the app turns it on for a ground vehicle (2 px, relative 2x,
+  // app::VehicleModel, docs/VIO.md, weather, 2026-12-03 later). Unused without IMU: a
   // constant-velocity prediction rejected the scene in a turn and the estimate diverged.
   double predicted_gate_pixels = 0.0;
   // With predicted_gate_pixels > 0: the gate widens to this many times the median of the new
