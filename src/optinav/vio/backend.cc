@@ -7,6 +7,7 @@
 
 #include "optinav/camera/camera.h"
 #include "optinav/util/error.h"
+#include "optinav/util/statistics.h"
 
 namespace optinav::vio {
 
@@ -741,9 +742,7 @@ void SlidingWindowBackend::GateOnPrediction(const State& state) {
     std::vector<double> values;
     values.reserve(errors.size());
     for (const auto& [id, e] : errors) values.push_back(e);
-    auto mid = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
-    std::nth_element(values.begin(), mid, values.end());
-    gate = std::max(gate, options_.predicted_gate_median_factor * *mid);
+    gate = std::max(gate, options_.predicted_gate_median_factor * Median(std::move(values)));
   }
   std::set<uint64_t> bad;
   for (const auto& [id, e] : errors)
