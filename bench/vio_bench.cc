@@ -12,7 +12,9 @@
 //    of the simulated urban car route (seed 1, as `bench weather`), rendered once into a temporary
 //    folder before timing. Weather none / fog:100 / dust:100; mode stereo (the document's) or
 //    stereo-imu; frontend "now" (the defaults) or "filed" (as when issue 19 was filed: no
-//    low-contrast CLAHE, no trackability check of new corners), side by side in the same run.
+//    low-contrast CLAHE, no trackability check of new corners, no ground-vehicle defaults),
+//    side by side in the same run. "now" in stereo-imu applies the ground vehicle's defaults
+//    (app::ApplyGroundVehicleDefaults: what `optinav vio` and `bench weather` run on car routes).
 //    Target: total per frame median <= 20 ms, p95 <= 50 ms on one core (run under `taskset -c 0`).
 // Data: ../shared/data (or $OPTINAV_SHARED_DATA); the car frames are generated.
 #include <cstdlib>
@@ -25,6 +27,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <unistd.h>
 
+#include "optinav/app/vio_run.h"
 #include "optinav/io/euroc_dataset.h"
 #include "optinav/sim/simulation.h"
 #include "optinav/sim/weather.h"
@@ -133,6 +136,8 @@ void BM_VioCar800(benchmark::State& state, const std::string& weather, vio::VioM
   if (filed_frontend) {  // the frontend before 2026-11-25
     options.frontend.clahe_clip_limit = 0;
     options.frontend.detect_min_eigen = 0;
+  } else if (mode == vio::VioMode::kStereoImu) {  // --vehicle auto on a car route
+    app::ApplyGroundVehicleDefaults(&options.backend);
   }
   RunEstimator(state, c, options);
 }

@@ -71,15 +71,7 @@ vio::VioRunOptions MakeRunOptions(const VioRunSettings& st,
       spdlog::warn("--vehicle ground has no effect in stereo mode (no velocity states)");
     *vehicle = VehicleModel::kFree;
   }
-  vio::BackendOptions& b = options.vio.backend;
-  if (*vehicle == VehicleModel::kGround && b.ground_vehicle_lateral_sigma_m_s == 0 &&
-      b.ground_vehicle_vertical_sigma_m_s == 0)
-    b.ground_vehicle_vertical_sigma_m_s = kGroundVehicleVerticalSigmaMs;
-  if (*vehicle == VehicleModel::kGround && b.predicted_gate_pixels == 0) {
-    b.predicted_gate_pixels = kGroundVehicleGatePixels;
-    if (b.predicted_gate_median_factor == 0)
-      b.predicted_gate_median_factor = kGroundVehicleGateMedianFactor;
-  }
+  if (*vehicle == VehicleModel::kGround) ApplyGroundVehicleDefaults(&options.vio.backend);
   if (st.loop_closure) {
     (options.vio.mode == vio::VioMode::kStereo ? options.vio.loop_closure.stereo_only
                                                : options.vio.loop_closure.stereo_imu) =
@@ -287,6 +279,17 @@ void WriteGnssReportDocument(const VioRunSettings& st, const vio::GnssInput& inp
 
 }  // namespace
 
+void ApplyGroundVehicleDefaults(vio::BackendOptions* backend) {
+  vio::BackendOptions& b = *backend;
+  if (b.ground_vehicle_lateral_sigma_m_s == 0 && b.ground_vehicle_vertical_sigma_m_s == 0)
+    b.ground_vehicle_vertical_sigma_m_s = kGroundVehicleVerticalSigmaMs;
+  if (b.predicted_gate_pixels == 0) {
+    b.predicted_gate_pixels = kGroundVehicleGatePixels;
+    if (b.predicted_gate_median_factor == 0)
+      b.predicted_gate_median_factor = kGroundVehicleGateMedianFactor;
+  }
+}
+
 std::optional<VehicleModel> ParseVehicleModel(const std::string& name) {
   if (name == "auto") return VehicleModel::kAuto;
   if (name == "ground") return VehicleModel::kGround;
@@ -337,6 +340,14 @@ std::string VioRunSettings::Check() const {
   return "";
 }
 
+std::string EffectiveVioOptionsYaml(const VioRunSettings& settings) {
+  VioRunSettings st = settings;
+  st.gnss = false;  // the GNSS fusion options are not VIO options; no GNSS file is read
+  std::optional<vio::GnssInput> gnss_input;
+  VehicleModel vehicle = VehicleModel::kFree;
+  return vio::VioOptionsYaml(MakeRunOptions(st, &gnss_input, &vehicle).vio);
+}
+
 VioRunReport RunVioDataset(const VioRunSettings& st) {
   if (const std::string m = st.Check(); !m.empty()) throw Error(m);
   if (st.html) report::LoadLeafletAssets();  // missing: say so before the run, not after
@@ -346,6 +357,7 @@ VioRunReport RunVioDataset(const VioRunSettings& st) {
   VioRunReport report;
   report.mode = vio::VioModeName(options.vio.mode);
   report.vehicle = VehicleModelName(vehicle);
+  report.vio_options_yaml = vio::VioOptionsYaml(options.vio);
   if (options.vio.mode == vio::VioMode::kStereoImu) {
     report.predicted_gate_px = options.vio.backend.predicted_gate_pixels;
     report.predicted_gate_median_factor = options.vio.backend.predicted_gate_median_factor;
@@ -375,6 +387,7 @@ nlohmann::json VioStatsJson(const VioRunReport& report) {
   j["predicted_gate"] = {{"pixels", report.predicted_gate_px},
                          {"median_factor", report.predicted_gate_median_factor}};
   j["frame"] = report.frame;
+  j["vio_options_yaml"] = report.vio_options_yaml;
   j["frames"] = r.frames_total;
   j["frames_processed"] = r.frames_processed;
   j["frames_unpaired"] = r.frames_unpaired;

@@ -34,6 +34,10 @@ enum class VehicleModel { kAuto, kGround, kFree };
 inline constexpr double kGroundVehicleVerticalSigmaMs = 0.05;
 inline constexpr double kGroundVehicleGatePixels = 2.0;
 inline constexpr double kGroundVehicleGateMedianFactor = 2.0;
+// The ground vehicle's defaults in `backend`: the vertical-velocity sigma unless a ground-vehicle
+// sigma is set, the gate unless predicted_gate_pixels is set (and its median factor unless set).
+// What `--vehicle ground` does to a stereo-imu run (MakeRunOptions; bench/vio_bench.cc).
+void ApplyGroundVehicleDefaults(vio::BackendOptions* backend);
 std::optional<VehicleModel> ParseVehicleModel(const std::string& name);  // auto|ground|free
 const char* VehicleModelName(VehicleModel model);
 // kAuto resolved for `dataset` (kGround or kFree); the others as given. Throws Error naming the
@@ -75,6 +79,9 @@ struct VioRunReport {
   std::string vehicle;  // the motion model that ran: "ground" | "free"
   // The gate on the IMU-predicted pose that ran (vio::BackendOptions::predicted_gate_*; 0: off).
   double predicted_gate_px = 0, predicted_gate_median_factor = 0;
+  // Every VIO option the run used (config, mode, vehicle defaults, --loop-closure), as
+  // vio::VioOptionsYaml: a config file that reproduces the run.
+  std::string vio_options_yaml;
   std::string frame = "world";  // of `out`: "world", or "enu" once GNSS aligned it
   // The GNSS side outputs as resolved (defaults beside `out`); live: empty when not written.
   std::string gnss_live_out, wgs84_out, gnss_rejected_out;
@@ -86,11 +93,15 @@ struct VioRunReport {
 // the dataset or mode cannot serve, and when no pose was estimated.
 VioRunReport RunVioDataset(const VioRunSettings& settings);
 
+// VioRunReport::vio_options_yaml of a run with `settings`, without running it (reads the config
+// and, for --vehicle auto, the dataset's sim_complete.json; not the GNSS input).
+std::string EffectiveVioOptionsYaml(const VioRunSettings& settings);
+
 // What `optinav vio` prints on stdout: the loop-closure line, the GNSS line, the summary line.
 std::string FormatVioSummary(const VioRunSettings& settings, const VioRunReport& report);
 
 // The statistics JSON (--stats): frames, poses, initialisation, timing per stage, lost
-// intervals, loops, GNSS counts.
+// intervals, loops, GNSS counts, the effective options ("vio_options_yaml").
 nlohmann::json VioStatsJson(const VioRunReport& report);
 
 }  // namespace optinav::app

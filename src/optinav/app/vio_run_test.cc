@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include "optinav/eval/metrics.h"
+#include "optinav/io/text_parse.h"
 #include "optinav/io/trajectory_io.h"
 #include "optinav/report/html_report.h"
 #include "optinav/sim/simulation.h"
@@ -208,6 +209,18 @@ TEST_F(VioRunTest, GroundVehicleConstrainsTheRun) {
   const Eigen::Vector3d a = free.run.estimates.back().state.world_from_body.translation;
   const Eigen::Vector3d b = ground.run.estimates.back().state.world_from_body.translation;
   EXPECT_GT((a - b).norm(), 1e-6);
+  // The effective options as a config reproduce the run without the vehicle model's defaults.
+  EXPECT_EQ(EffectiveVioOptionsYaml(st), ground.vio_options_yaml);
+  EXPECT_EQ(VioStatsJson(ground)["vio_options_yaml"], ground.vio_options_yaml);
+  EXPECT_NE(free.vio_options_yaml, ground.vio_options_yaml);
+  st.config_path = Out("effective.yaml");
+  io::WriteFileAtomically(st.config_path, ground.vio_options_yaml);
+  st.vehicle = VehicleModel::kFree;
+  st.out = Out("vio_reproduced.tum");
+  const VioRunReport again = RunVioDataset(st);
+  EXPECT_EQ(again.vio_options_yaml, ground.vio_options_yaml);
+  ASSERT_EQ(again.run.estimates.size(), ground.run.estimates.size());
+  EXPECT_EQ(again.run.estimates.back().state.world_from_body.translation, b);
 }
 
 TEST(VioRunSettings, CheckNamesTheFlag) {

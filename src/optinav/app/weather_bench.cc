@@ -151,9 +151,26 @@ std::string RunStem(const Sequence& s, vio::VioMode mode) {
   return fmt::format("{}_{}_seed{}", s.name, vio::VioModeName(mode), s.seed);
 }
 
-// `config_text`: the text of --config ("" without one), read once per bench.
+// The settings `optinav vio --mode MODE` (threaded) gets for sequence `s`.
+VioRunSettings RunSettings(const Sequence& s, const std::string& stem, const WeatherBenchOptions& o,
+                           vio::VioMode mode) {
+  VioRunSettings st;
+  st.dataset = s.dir;
+  st.mode = mode;
+  st.config_path = o.vio_config;
+  st.vehicle = o.vehicle;
+  st.max_frames = o.max_frames;
+  st.out = stem + ".tum";
+  st.odometry_out = stem + ".odometry.tum";
+  st.stats_path = stem + ".stats.json";
+  return st;
+}
+
+// `config_text`: the text of --config ("" without one), read once per bench; `options_yaml`:
+// every option of the run (EffectiveVioOptionsYaml), so that a binary with other defaults
+// does not reuse the runs of an older one.
 nlohmann::json RunRecord(const WeatherRunResult& r, const WeatherBenchOptions& o,
-                         const std::string& config_text) {
+                         const std::string& config_text, const std::string& options_yaml) {
   nlohmann::json lost = nlohmann::json::array();
   for (const WeatherLost& l : r.lost)
     lost.push_back({{"start_s", l.start_s}, {"end_s", l.end_s}, {"reason", l.reason}});
@@ -165,6 +182,7 @@ nlohmann::json RunRecord(const WeatherRunResult& r, const WeatherBenchOptions& o
           {"max_frames", o.max_frames},
           {"vio_config", config_text},
           {"vehicle_setting", VehicleModelName(o.vehicle)},
+          {"vio_options_yaml", options_yaml},
           {"vehicle", r.vehicle},
           {"wall_s", r.wall_s},
           {"fps", r.fps},
@@ -182,12 +200,12 @@ double Number(const nlohmann::json& j, const char* key) {
 
 // A finished run of the same sequence, mode, seed and settings; false when there is none.
 bool LoadRun(const std::string& stem, const WeatherBenchOptions& o, const std::string& config_text,
-             WeatherRunResult* r) {
+             const std::string& options_yaml, WeatherRunResult* r) {
   const std::string path = stem + ".json";
   if (!fs::is_regular_file(path) || !fs::is_regular_file(stem + ".tum")) return false;
   try {
     const nlohmann::json j = nlohmann::json::parse(io::ReadFileToString(path));
-    nlohmann::json expect = RunRecord(*r, o, config_text);
+    nlohmann::json expect = RunRecord(*r, o, config_text, options_yaml);
     for (const char* key : {"sequence", "mode", "seed", "scale", "duration_s", "max_frames"})
       if (j.at(key) != expect.at(key))
         throw Error(fmt::format("made with another {}", key), {.file = path});
@@ -195,6 +213,11 @@ bool LoadRun(const std::string& stem, const WeatherBenchOptions& o, const std::s
       throw Error("made with another --config", {.file = path});
     if (j.value("vehicle_setting", std::string()) != VehicleModelName(o.vehicle))
       throw Error("made with another --vehicle (or before the setting)", {.file = path});
+    if (j.value("vio_options_yaml", std::string()) != options_yaml)
+      throw Error(
+          "made with other VIO options (a binary with other defaults, or before the record "
+          "kept them)",
+          {.file = path});
     r->vehicle = j.value("vehicle", std::string());
     r->wall_s = Number(j, "wall_s");
     r->fps = Number(j, "fps");
@@ -217,15 +240,7 @@ bool LoadRun(const std::string& stem, const WeatherBenchOptions& o, const std::s
 // Runs the VIO as `optinav vio --mode MODE` does (threaded) and records its figures.
 void RunVio(const Sequence& s, const std::string& stem, const WeatherBenchOptions& o,
             const std::string& config_text, int64_t t0_ns, WeatherRunResult* r) {
-  VioRunSettings st;
-  st.dataset = s.dir;
-  st.mode = r->mode;
-  st.config_path = o.vio_config;
-  st.vehicle = o.vehicle;
-  st.max_frames = o.max_frames;
-  st.out = stem + ".tum";
-  st.odometry_out = stem + ".odometry.tum";
-  st.stats_path = stem + ".stats.json";
+  const VioRunSettings st = RunSettings(s, stem, o, r->mode);
   fs::remove(stem + ".json");  // an earlier record must not outlive a run that fails now
   const Timer timer;
   const VioRunReport report = RunVioDataset(st);
@@ -242,7 +257,8 @@ void RunVio(const Sequence& s, const std::string& stem, const WeatherBenchOption
   }
   for (const vio::LostInterval& l : v.lost)
     r->lost.push_back({(l.start_ns - t0_ns) * 1e-9, (l.end_ns - t0_ns) * 1e-9, l.reason});
-  io::WriteFileAtomically(stem + ".json", RunRecord(*r, o, config_text).dump(2) + "\n");
+  io::WriteFileAtomically(stem + ".json",
+                          RunRecord(*r, o, config_text, report.vio_options_yaml).dump(2) + "\n");
 }
 
 // NaN when the SE(3) fit is undetermined (a straight stretch of route: the roll about it).
@@ -345,7 +361,9 @@ std::vector<WeatherRunResult> RunSequence(const Sequence& s, Shared* sh,
     r.path_length_m = truth.PathLength();
     const std::string stem = (fs::path(o.out_dir) / "runs" / RunStem(s, mode)).string();
     // A run is only as current as its sequence: a fresh rendering is run again.
-    r.reused = o.reuse && !rendered && LoadRun(stem, o, sh->vio_config_text, &r);
+    r.reused = o.reuse && !rendered &&
+               LoadRun(stem, o, sh->vio_config_text,
+                       EffectiveVioOptionsYaml(RunSettings(s, stem, o, r.mode)), &r);
     if (o.merge && !r.reused)
       throw Error("no finished run to merge (merge runs nothing)", {.file = stem + ".json"});
     try {

@@ -1,5 +1,6 @@
 #include "optinav/app/weather_bench.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -170,6 +171,22 @@ TEST(WeatherBench, ShortUrbanRouteClearAndDustThenReuse) {
   EXPECT_TRUE(resumed.runs[0].reused);
   EXPECT_FALSE(resumed.runs[1].reused);
   EXPECT_TRUE(resumed.runs[1].ok);
+
+  // A record made by a binary with other defaults (its effective options differ) is run again.
+  std::vector<fs::path> records;
+  for (const auto& e : fs::directory_iterator(dir / "runs"))
+    if (e.path().extension() == ".json" && e.path().string().find(".stats.") == std::string::npos)
+      records.push_back(e.path());
+  ASSERT_EQ(records.size(), 2u);
+  nlohmann::json record = nlohmann::json::parse(testing::ReadFile(records[0]));
+  const std::string yaml = record.at("vio_options_yaml").get<std::string>();
+  EXPECT_EQ(yaml.rfind("mode: stereo\n", 0), 0u) << yaml;
+  record["vio_options_yaml"] = yaml + "# another binary\n";
+  io::WriteFileAtomically(records[0].string(), record.dump(2));
+  const WeatherBenchResult stale = RunWeatherBench(o, say);
+  EXPECT_EQ(std::count_if(stale.runs.begin(), stale.runs.end(),
+                          [](const WeatherRunResult& run) { return run.reused; }),
+            1);
 
   // --config: the runs made with other VIO options are run again; the renderings are kept.
   o.vio_config = (dir / "vio.yaml").string();

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstring>
 #include <map>
+#include <type_traits>
 #include <variant>
 
 #include <fmt/format.h>
@@ -72,21 +73,15 @@ std::string KeyName(const YamlFile& file, const YAML::Node& key, const std::stri
   return key.Scalar();
 }
 
-}  // namespace
-
-VioOptions LoadVioOptions(const std::string& path) {
-  const YamlFile file = LoadYamlFile(path);
-  VioOptions o;
-  const YAML::Node& root = file.root;
-  if (!root.IsMap()) throw Error("expected a map of options", {.file = path});
-  // Every key of a section and the field it sets; any other key is an error (a typo must not
-  // pass silently).
-  using Field = std::variant<int*, double*, bool*>;
-  using Section = std::vector<std::pair<const char*, Field>>;
+// Every key of a config section and the field of `o` it sets; any other key is an error (a typo
+// must not pass silently). The one list behind LoadVioOptions and VioOptionsYaml.
+using Field = std::variant<int*, double*, bool*>;
+using Section = std::vector<std::pair<const char*, Field>>;
+std::map<std::string, Section> OptionSections(VioOptions& o) {
   FrontendOptions& f = o.frontend;
   BackendOptions& b = o.backend;
   LoopClosureOptions& l = o.loop_closure;
-  const std::map<std::string, Section> sections = {
+  return {
       {"frontend",
        {{"max_features", &f.max_features},
         {"grid_cols", &f.grid_cols},
@@ -198,6 +193,35 @@ VioOptions LoadVioOptions(const std::string& path) {
         {"max_accel_bias", &o.max_accel_bias}}},
       {"pipeline", {{"feedback_lag_frames", &o.feedback_lag_frames}}},
   };
+}
+
+}  // namespace
+
+std::string VioOptionsYaml(const VioOptions& options) {
+  VioOptions o = options;
+  std::string text = fmt::format("mode: {}\n", VioModeName(o.mode));
+  for (const auto& [section, fields] : OptionSections(o)) {
+    text += section + ":\n";
+    for (const auto& [name, field] : fields) {
+      std::visit(
+          [&, name = name](auto* value) {
+            if constexpr (std::is_same_v<std::decay_t<decltype(*value)>, bool>)
+              text += fmt::format("  {}: {}\n", name, *value ? "true" : "false");
+            else
+              text += fmt::format("  {}: {}\n", name, *value);  // shortest exact form
+          },
+          field);
+    }
+  }
+  return text;
+}
+
+VioOptions LoadVioOptions(const std::string& path) {
+  const YamlFile file = LoadYamlFile(path);
+  VioOptions o;
+  const YAML::Node& root = file.root;
+  if (!root.IsMap()) throw Error("expected a map of options", {.file = path});
+  const std::map<std::string, Section> sections = OptionSections(o);
   for (const auto& kv : root) {
     const std::string key = KeyName(file, kv.first, "");
     if (key == "mode") {

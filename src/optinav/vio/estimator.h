@@ -146,6 +146,9 @@ struct VioOptions {
 // Reads a YAML config (every key optional, defaults above; see config/vio_euroc.yaml).
 // Throws Error naming the file, line and key on unknown keys or bad values.
 VioOptions LoadVioOptions(const std::string& path);
+// Every option LoadVioOptions reads, as a YAML config that loads back to `options` (doubles in
+// their shortest exact form): the effective configuration of a run.
+std::string VioOptionsYaml(const VioOptions& options);
 
 struct LostInterval {
   int64_t start_ns = 0, end_ns = 0;  // last good frame, first frame of the new track

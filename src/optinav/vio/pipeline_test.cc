@@ -663,6 +663,40 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(fl.odometry_min_sigma_rad, dl.odometry_min_sigma_rad);
   EXPECT_EQ(fl.loop_sigma_m, dl.loop_sigma_m);
   EXPECT_EQ(fl.loop_sigma_rad, dl.loop_sigma_rad);
+  // Every loadable option at once (the documented file may leave some out: then the defaults).
+  EXPECT_EQ(VioOptionsYaml(file), VioOptionsYaml(d));
+}
+
+// The effective configuration of a run: every option, loading back to the same options.
+TEST(VioConfig, OptionsYamlLoadsBackToTheSameOptions) {
+  const auto dir = optinav::testing::MakeTempDir("vio_options_yaml");
+  VioOptions o;
+  o.mode = VioMode::kStereo;
+  o.frontend.max_features = 97;
+  o.frontend.keyframe_fresh_probation = true;
+  o.backend.pixel_sigma = 0.1 + 0.2;  // not exact in 3 digits: the shortest exact form
+  o.backend.predicted_gate_median_factor = 2;
+  o.backend.ground_vehicle_vertical_sigma_m_s = 1e-12;
+  o.loop_closure.stereo_only = false;
+  o.feedback_lag_frames = 2;
+  const std::string text = VioOptionsYaml(o);
+  EXPECT_NE(text.find("mode: stereo\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("  max_features: 97\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("  keyframe_fresh_probation: true\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("  predicted_gate_median_factor: 2\n"), std::string::npos) << text;
+  const std::string path = optinav::testing::WriteFile(dir / "effective.yaml", text);
+  const VioOptions back = LoadVioOptions(path);
+  EXPECT_EQ(back.backend.pixel_sigma, 0.1 + 0.2);
+  EXPECT_EQ(back.backend.ground_vehicle_vertical_sigma_m_s, 1e-12);
+  EXPECT_EQ(back.mode, VioMode::kStereo);
+  EXPECT_FALSE(back.loop_closure.stereo_only);
+  EXPECT_EQ(back.feedback_lag_frames, 2);
+  EXPECT_EQ(VioOptionsYaml(back), text);
+  // Any option changed changes the text (what `bench weather --reuse` compares).
+  VioOptions other = o;
+  other.lowcontrast_gyro_walk_scale = 0.5;
+  EXPECT_NE(VioOptionsYaml(other), text);
+  EXPECT_NE(VioOptionsYaml(VioOptions{}), text);
 }
 
 TEST(VioConfig, BadConfigsNameTheKey) {
