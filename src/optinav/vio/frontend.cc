@@ -19,6 +19,15 @@ cv::Point2f ToCv(const Eigen::Vector2d& p) {
   return {static_cast<float>(p.x()), static_cast<float>(p.y())};
 }
 
+// `m` emptied unless it alone owns its data: a reused buffer must never be written while anything
+// else (a caller's image that a pyramid level refers to, say) still reads it.
+void KeepIfExclusive(cv::Mat* m) {
+  if (m->u != nullptr && m->u->refcount > 1) m->release();
+}
+void KeepIfExclusive(std::vector<cv::Mat>* v) {
+  for (cv::Mat& m : *v) KeepIfExclusive(&m);
+}
+
 }  // namespace
 
 double IntensityStd(const cv::Mat& grey) {
@@ -120,7 +129,9 @@ void StereoFrontend::Detect(const cv::Mat& image, const std::vector<cv::Mat>& py
   const int cell_w = image.cols / cols, cell_h = image.rows / rows;
   const int per_cell = (options_.max_features + cols * rows - 1) / (cols * rows);
   std::vector<int> count(cols * rows, 0);
-  cv::Mat mask(image.size(), CV_8UC1, cv::Scalar(255));
+  cv::Mat& mask = detect_mask_;
+  mask.create(image.size(), CV_8UC1);
+  mask.setTo(255);
   const int b = options_.border_px;
   mask.rowRange(0, std::min(b, mask.rows)).setTo(0);
   mask.rowRange(std::max(0, mask.rows - b), mask.rows).setTo(0);
@@ -329,14 +340,22 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
     if (!clahe_)
       clahe_ = cv::createCLAHE(options_.clahe_clip_limit,
                                cv::Size(options_.clahe_tiles, options_.clahe_tiles));
-    clahe_->apply(left, left_eq);
-    clahe_->apply(right, right_eq);
+    KeepIfExclusive(&left_eq_buffer_);
+    KeepIfExclusive(&right_eq_buffer_);
+    clahe_->apply(left, left_eq_buffer_);
+    clahe_->apply(right, right_eq_buffer_);
+    left_eq = left_eq_buffer_;
+    right_eq = right_eq_buffer_;
   } else if (low_contrast_ && options_.contrast_stretch_std > 0) {
     const double want = options_.contrast_stretch_std / std::max(left_std[0], 1.0);
     stretch_gain_ = stretch_gain_ > 0 ? 0.9 * stretch_gain_ + 0.1 * want : want;
     const double g = std::max(stretch_gain_, 1.0), offset = left_mean[0] * (1 - g);
-    left.convertTo(left_eq, -1, g, offset);
-    right.convertTo(right_eq, -1, g, offset);
+    KeepIfExclusive(&left_eq_buffer_);
+    KeepIfExclusive(&right_eq_buffer_);
+    left.convertTo(left_eq_buffer_, -1, g, offset);
+    right.convertTo(right_eq_buffer_, -1, g, offset);
+    left_eq = left_eq_buffer_;
+    right_eq = right_eq_buffer_;
   } else {
     left_eq = left;
     right_eq = right;
@@ -358,7 +377,11 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
     right_eq =
         LocalContrastNormalise(right_eq, options_.local_norm_sigma_px, options_.local_norm_floor);
   }
-  std::vector<cv::Mat> left_pyramid, right_pyramid;
+  // Into the reused buffers: the one before the previous left pyramid, the last right one.
+  std::vector<cv::Mat> left_pyramid = std::move(spare_pyramid_);
+  std::vector<cv::Mat> right_pyramid = std::move(right_pyramid_);
+  KeepIfExclusive(&left_pyramid);
+  KeepIfExclusive(&right_pyramid);
   const int pad = std::max(options_.klt_window_px, options_.stereo_window_px);
   cv::buildOpticalFlowPyramid(left_eq, left_pyramid, cv::Size(pad, pad),
                               options_.klt_pyramid_levels);
@@ -467,7 +490,9 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
   }
   lap("frontend.stereo");
   tracks_ = std::move(tracks);
+  spare_pyramid_ = std::move(prev_pyramid_);
   prev_pyramid_ = std::move(left_pyramid);
+  right_pyramid_ = std::move(right_pyramid);
   return out;
 }
 

@@ -142,6 +142,71 @@ TEST(Frontend, ClaheOnlyOnLowContrastFrames) {
   EXPECT_GT(with.tracked, 1.5 * without.tracked);
 }
 
+// The frontend reuses its image and pyramid buffers from frame to frame. OpenCV builds a pyramid's
+// first level in the caller's image when that image is a view with enough border around it; a
+// reused buffer must then never be written while the caller still holds the image. Frames fed
+// as such views (their border the reflection OpenCV would make, so the result is the same) give
+// the same tracks as plain images, and leave every image the caller holds unchanged, with frames
+// switching between the contrast paths (CLAHE on faint frames: a buffer of ours; plain frames:
+// the caller's view).
+TEST(Frontend, ReusedBuffersNeverWriteTheCallersImages) {
+  const io::EurocDataset ds = OpenMicro();
+  const camera::StereoRig rig = io::ToStereoRig(ds.cam0->calibration, ds.cam1->calibration);
+  std::map<int64_t, std::string> rights;
+  for (const auto& r : ds.cam1->images) rights[r.t_ns] = r.path;
+  const int pad = 32;  // > the KLT and stereo windows, so OpenCV uses the view in place
+  struct Frame {
+    int64_t t_ns;
+    cv::Mat left, right;                   // plain images
+    cv::Mat left_parent, right_parent;     // the same with a border, kept alive
+    cv::Mat left_copy, right_copy;         // the parents as they were
+  };
+  std::vector<Frame> frames;
+  for (size_t i = 0; i < 24 && frames.size() < 12; ++i) {
+    const auto& l = ds.cam0->images[i];
+    const auto r = rights.find(l.t_ns);
+    if (r == rights.end()) continue;
+    Frame f{l.t_ns, cv::imread(l.path, cv::IMREAD_GRAYSCALE),
+            cv::imread(r->second, cv::IMREAD_GRAYSCALE)};
+    ASSERT_FALSE(f.left.empty() || f.right.empty());
+    if ((frames.size() / 3) % 2 == 1) {  // three faint frames (CLAHE), three plain, ...
+      f.left.convertTo(f.left, CV_8U, 0.1, 150);
+      f.right.convertTo(f.right, CV_8U, 0.1, 150);
+    }
+    cv::copyMakeBorder(f.left, f.left_parent, pad, pad, pad, pad, cv::BORDER_REFLECT_101);
+    cv::copyMakeBorder(f.right, f.right_parent, pad, pad, pad, pad, cv::BORDER_REFLECT_101);
+    f.left_copy = f.left_parent.clone();
+    f.right_copy = f.right_parent.clone();
+    frames.push_back(std::move(f));
+  }
+  ASSERT_EQ(frames.size(), 12u);
+  StereoFrontend plain(rig, FrontendOptions{}), views(rig, FrontendOptions{});
+  int low_contrast = 0, compared = 0;
+  for (const Frame& f : frames) {
+    const cv::Rect inner(pad, pad, f.left.cols, f.left.rows);
+    const FrontendOutput a = plain.Process(f.t_ns, f.left, f.right, std::nullopt);
+    const FrontendOutput b =
+        views.Process(f.t_ns, f.left_parent(inner), f.right_parent(inner), std::nullopt);
+    low_contrast += a.stats.low_contrast ? 1 : 0;
+    ASSERT_EQ(a.observations.size(), b.observations.size()) << "frame at " << f.t_ns;
+    for (size_t i = 0; i < a.observations.size(); ++i) {
+      EXPECT_EQ(a.observations[i].track_id, b.observations[i].track_id);
+      EXPECT_EQ(a.observations[i].left, b.observations[i].left);
+      EXPECT_EQ(a.observations[i].right.has_value(), b.observations[i].right.has_value());
+      if (a.observations[i].right && b.observations[i].right) {
+        EXPECT_EQ(*a.observations[i].right, *b.observations[i].right);
+      }
+      ++compared;
+    }
+  }
+  for (const Frame& f : frames) {
+    EXPECT_EQ(cv::norm(f.left_parent, f.left_copy, cv::NORM_INF), 0) << "left at " << f.t_ns;
+    EXPECT_EQ(cv::norm(f.right_parent, f.right_copy, cv::NORM_INF), 0) << "right at " << f.t_ns;
+  }
+  EXPECT_EQ(low_contrast, 6);  // both contrast paths ran, switching four times
+  EXPECT_GT(compared, 500);
+}
+
 // The global stretch (contrast_stretch_std, CLAHE off): on low-contrast frames one gain for the
 // whole image brings the tracks back like CLAHE does; above the threshold nothing changes.
 TEST(Frontend, GlobalContrastStretchOnLowContrastFrames) {

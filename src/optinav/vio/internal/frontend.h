@@ -190,6 +190,13 @@ class StereoFrontend {
   FrontendOptions options_;
   Eigen::Matrix3d essential_;  // right_x^T E left_x = 0 for normalised points
   std::vector<cv::Mat> prev_pyramid_;
+  // Buffers reused from frame to frame (the next left pyramid is built in the one before the
+  // previous; the right pyramid and the contrast-normalised images in their own): an image or
+  // pyramid allocated anew each frame costs its page faults each frame (at 800x600 about 6 MB
+  // a frame, a tenth of the frontend's time, bench/RESULTS.md). Never referenced outside
+  // Process, so writing into them cannot change what a caller holds.
+  std::vector<cv::Mat> spare_pyramid_, right_pyramid_;
+  cv::Mat left_eq_buffer_, right_eq_buffer_, detect_mask_;
   std::vector<Track> tracks_;
   uint64_t next_id_ = 1;
   // The last keyframe: its time and its tracks' pixels.
