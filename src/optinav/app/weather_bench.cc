@@ -237,10 +237,9 @@ bool LoadRun(const std::string& stem, const WeatherBenchOptions& o, const std::s
   }
 }
 
-// Runs the VIO as `optinav vio --mode MODE` does (threaded) and records its figures.
-void RunVio(const Sequence& s, const std::string& stem, const WeatherBenchOptions& o,
+// Runs the VIO with `st` (RunSettings) and records its figures.
+void RunVio(const VioRunSettings& st, const std::string& stem, const WeatherBenchOptions& o,
             const std::string& config_text, int64_t t0_ns, WeatherRunResult* r) {
-  const VioRunSettings st = RunSettings(s, stem, o, r->mode);
   fs::remove(stem + ".json");  // an earlier record must not outlive a run that fails now
   const Timer timer;
   const VioRunReport report = RunVioDataset(st);
@@ -360,14 +359,14 @@ std::vector<WeatherRunResult> RunSequence(const Sequence& s, Shared* sh,
     r.seed = s.seed;
     r.path_length_m = truth.PathLength();
     const std::string stem = (fs::path(o.out_dir) / "runs" / RunStem(s, mode)).string();
+    const VioRunSettings st = RunSettings(s, stem, o, mode);
     // A run is only as current as its sequence: a fresh rendering is run again.
     r.reused = o.reuse && !rendered &&
-               LoadRun(stem, o, sh->vio_config_text,
-                       EffectiveVioOptionsYaml(RunSettings(s, stem, o, r.mode)), &r);
+               LoadRun(stem, o, sh->vio_config_text, EffectiveVioOptionsYaml(st), &r);
     if (o.merge && !r.reused)
       throw Error("no finished run to merge (merge runs nothing)", {.file = stem + ".json"});
     try {
-      if (!r.reused) RunVio(s, stem, o, sh->vio_config_text, truth.t_ns.front(), &r);
+      if (!r.reused) RunVio(st, stem, o, sh->vio_config_text, truth.t_ns.front(), &r);
       Evaluate(truth, stem, &r);
     } catch (const std::exception& e) {
       r.ok = false;

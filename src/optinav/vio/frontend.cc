@@ -19,13 +19,12 @@ cv::Point2f ToCv(const Eigen::Vector2d& p) {
   return {static_cast<float>(p.x()), static_cast<float>(p.y())};
 }
 
-// `m` emptied unless it alone owns its data: a reused buffer must never be written while anything
-// else (a caller's image that a pyramid level refers to, say) still reads it.
-void KeepIfExclusive(cv::Mat* m) {
-  if (m->u != nullptr && m->u->refcount > 1) m->release();
-}
-void KeepIfExclusive(std::vector<cv::Mat>* v) {
-  for (cv::Mat& m : *v) KeepIfExclusive(&m);
+// Each level of a reused pyramid emptied unless it alone owns its data: OpenCV builds a pyramid's
+// first level in the input image when that is a view with a border (the caller's image), and a
+// reused buffer must never be written while anything else still reads it.
+void KeepIfExclusive(std::vector<cv::Mat>* pyramid) {
+  for (cv::Mat& m : *pyramid)
+    if (m.u != nullptr && m.u->refcount > 1) m.release();
 }
 
 }  // namespace
@@ -340,8 +339,6 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
     if (!clahe_)
       clahe_ = cv::createCLAHE(options_.clahe_clip_limit,
                                cv::Size(options_.clahe_tiles, options_.clahe_tiles));
-    KeepIfExclusive(&left_eq_buffer_);
-    KeepIfExclusive(&right_eq_buffer_);
     clahe_->apply(left, left_eq_buffer_);
     clahe_->apply(right, right_eq_buffer_);
     left_eq = left_eq_buffer_;
@@ -350,8 +347,6 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
     const double want = options_.contrast_stretch_std / std::max(left_std[0], 1.0);
     stretch_gain_ = stretch_gain_ > 0 ? 0.9 * stretch_gain_ + 0.1 * want : want;
     const double g = std::max(stretch_gain_, 1.0), offset = left_mean[0] * (1 - g);
-    KeepIfExclusive(&left_eq_buffer_);
-    KeepIfExclusive(&right_eq_buffer_);
     left.convertTo(left_eq_buffer_, -1, g, offset);
     right.convertTo(right_eq_buffer_, -1, g, offset);
     left_eq = left_eq_buffer_;

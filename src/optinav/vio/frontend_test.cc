@@ -157,9 +157,9 @@ TEST(Frontend, ReusedBuffersNeverWriteTheCallersImages) {
   const int pad = 32;  // > the KLT and stereo windows, so OpenCV uses the view in place
   struct Frame {
     int64_t t_ns;
-    cv::Mat left, right;                   // plain images
-    cv::Mat left_parent, right_parent;     // the same with a border, kept alive
-    cv::Mat left_copy, right_copy;         // the parents as they were
+    cv::Mat left, right;                // plain images
+    cv::Mat left_parent, right_parent;  // the same with a border, kept alive
+    cv::Mat left_copy, right_copy;      // the parents as they were
   };
   std::vector<Frame> frames;
   for (size_t i = 0; i < 24 && frames.size() < 12; ++i) {

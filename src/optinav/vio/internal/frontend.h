@@ -193,8 +193,9 @@ class StereoFrontend {
   // Buffers reused from frame to frame (the next left pyramid is built in the one before the
   // previous; the right pyramid and the contrast-normalised images in their own): an image or
   // pyramid allocated anew each frame costs its page faults each frame (at 800x600 about 6 MB
-  // a frame; a tenth of `optinav vio`'s time on these VMs, bench/RESULTS.md). Written only when
-  // nothing else references them (KeepIfExclusive), so a caller's image is never changed.
+  // a frame; a tenth of `optinav vio`'s time on these VMs, bench/RESULTS.md). A pyramid level is
+  // written only when nothing else references it (KeepIfExclusive), so a caller's image is never
+  // changed; the contrast-normalised images are ours alone (a pyramid copies them).
   std::vector<cv::Mat> spare_pyramid_, right_pyramid_;
   cv::Mat left_eq_buffer_, right_eq_buffer_, detect_mask_;
   std::vector<Track> tracks_;
