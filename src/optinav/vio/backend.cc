@@ -794,19 +794,32 @@ void SlidingWindowBackend::MarginalizeOldest() {
   const State* newest = states_.back().get();
   // Landmarks of the oldest state that are no longer tracked go with it.
   // (In id order: the block order of the marginalisation must not depend on addresses.)
+  // With marginalize_tracked_landmarks, the landmarks the newest frame still tracks are split:
+  // their observations by the other states go into the prior with them (`split`).
+  const Rigid3d cam0_from_world = rig_.cam0_from_body * newest->WorldFromBody().Inverse();
   std::set<const Landmark*> leaving;
-  std::vector<uint64_t> leaving_ids;
+  std::vector<uint64_t> leaving_ids, split_ids;
   std::vector<double*> leaving_blocks;
   for (const auto& [id, obs] : oldest->observations) {
     Landmark* l = landmarks_.at(id).get();
-    if (l->initialized && l->num_states >= 2 && !newest->observations.count(id)) {
-      leaving.insert(l);
-      leaving_ids.push_back(id);
-      leaving_blocks.push_back(l->position);
+    if (!l->initialized || l->num_states < 2) continue;
+    const bool tracked = newest->observations.count(id) > 0;
+    if (tracked && !options_.marginalize_tracked_landmarks) continue;
+    if (tracked && options_.marginalize_tracked_max_depth_m > 0) {
+      const Eigen::Vector3d p =
+          cam0_from_world * Eigen::Vector3d(l->position[0], l->position[1], l->position[2]);
+      if (p.z() > options_.marginalize_tracked_max_depth_m) continue;
     }
+    leaving.insert(l);
+    (tracked ? split_ids : leaving_ids).push_back(id);
+    leaving_blocks.push_back(l->position);
   }
-  std::vector<std::unique_ptr<ResidualSpec>> owned = BuildResiduals(
-      [](const State*) { return true; }, [&](const Landmark* l) { return leaving.count(l) > 0; });
+  // (The newest state observes no leaving landmark; it keeps its observations of split ones. It
+  // is the keyframe just added: only a new keyframe makes the window overflow, so the prior never
+  // involves a state that DropNewestIfNotKeyframe removes later.)
+  std::vector<std::unique_ptr<ResidualSpec>> owned =
+      BuildResiduals([&](const State* s) { return s != newest; },
+                     [&](const Landmark* l) { return leaving.count(l) > 0; });
   if (options_.use_imu && states_[1]->has_preintegration) {
     auto spec = std::make_unique<ResidualSpec>();
     spec->cost.reset(CreateImuFactor(states_[1]->preintegration, options_.gravity));
@@ -852,10 +865,16 @@ void SlidingWindowBackend::MarginalizeOldest() {
                            options_.jacobi_scaled_marginalization);
   }
 
-  // Remove what left the window.
+  // Remove what left the window. A split landmark keeps its block (eliminated from the prior,
+  // so free again) at its current position, observed by the newest state only.
   for (uint64_t id : leaving_ids) {
     for (auto& state : states_) state->observations.erase(id);
     landmarks_.erase(id);
+  }
+  for (uint64_t id : split_ids) {
+    for (auto& state : states_)
+      if (state.get() != newest) state->observations.erase(id);
+    landmarks_.at(id)->num_states = 1;
   }
   for (const auto& [id, obs] : oldest->observations) {
     auto it = landmarks_.find(id);

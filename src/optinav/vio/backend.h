@@ -48,6 +48,14 @@ struct BackendOptions {
   // removed instead of outlier_pixels (0: outlier_pixels). The VIO pipeline sets it
   // (VioOptions::stereo_only_outlier_pixels): it relies on the frontend replacing rejected tracks.
   double stereo_only_outlier_pixels = 0.0;
+  // When the oldest keyframe leaves: a landmark it observes that the newest frame still tracks
+  // is split instead of losing that observation. Its observations by every state but the newest
+  // are marginalised with it into the prior (nothing dropped), and it carries on as a new
+  // landmark from the newest observation (at its current position). false: the oldest
+  // keyframe's observation of it is dropped (information lost; docs/VIO.md, weather).
+  bool marginalize_tracked_landmarks = false;
+  // ... only those nearer than this to the newest frame's left camera (m; 0: all).
+  double marginalize_tracked_max_depth_m = 0.0;
   // With IMU, before the solve: a landmark whose newest observation reprojects farther than this
   // from the IMU-predicted pose of the new frame is rejected (with its track) instead of entering
   // the solve (0: off). Falling snow and leaves are tracked like the scene but drift 1-1.5 m/s

@@ -118,6 +118,8 @@ std::map<std::string, Section> OptionSections(VioOptions& o) {
         {"pixel_sigma", &b.pixel_sigma},
         {"huber_pixels", &b.huber_pixels},
         {"outlier_pixels", &b.outlier_pixels},
+        {"marginalize_tracked_landmarks", &b.marginalize_tracked_landmarks},
+        {"marginalize_tracked_max_depth_m", &b.marginalize_tracked_max_depth_m},
         {"predicted_gate_pixels", &b.predicted_gate_pixels},
         {"predicted_gate_median_factor", &b.predicted_gate_median_factor},
         {"ground_vehicle_lateral_sigma_m_s", &b.ground_vehicle_lateral_sigma_m_s},
@@ -125,6 +127,7 @@ std::map<std::string, Section> OptionSections(VioOptions& o) {
         {"stereo_only_outlier_pixels", &o.stereo_only_outlier_pixels},
         {"stereo_only_initial_trust_region_radius", &o.stereo_only_initial_trust_region_radius},
         {"stereo_only_function_tolerance", &o.stereo_only_function_tolerance},
+        {"stereo_only_marginalize_tracked_landmarks", &o.stereo_only_marginalize_tracked_landmarks},
         {"lowcontrast_gyro_walk_scale", &o.lowcontrast_gyro_walk_scale},
         {"min_depth_m", &b.min_depth_m},
         {"max_depth_m", &b.max_depth_m},
@@ -286,6 +289,7 @@ BackendOptions WithMode(BackendOptions b, const VioOptions& o, const ImuNoise& n
   if (!b.use_imu) {
     b.initial_trust_region_radius = o.stereo_only_initial_trust_region_radius;
     b.function_tolerance = o.stereo_only_function_tolerance;
+    b.marginalize_tracked_landmarks = o.stereo_only_marginalize_tracked_landmarks;
   }
   b.imu_noise = noise;
   return b;

@@ -622,6 +622,9 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(file.backend.ground_vehicle_vertical_sigma_m_s,
             d.backend.ground_vehicle_vertical_sigma_m_s);
   EXPECT_EQ(file.lowcontrast_gyro_walk_scale, d.lowcontrast_gyro_walk_scale);
+  EXPECT_EQ(file.backend.marginalize_tracked_landmarks, d.backend.marginalize_tracked_landmarks);
+  EXPECT_EQ(file.stereo_only_marginalize_tracked_landmarks,
+            d.stereo_only_marginalize_tracked_landmarks);
   EXPECT_EQ(file.backend.prior_accel_bias_sigma, d.backend.prior_accel_bias_sigma);
   EXPECT_EQ(file.still_max_gyro_std, d.still_max_gyro_std);
   EXPECT_EQ(file.still_max_accel_std, d.still_max_accel_std);
