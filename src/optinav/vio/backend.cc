@@ -70,6 +70,8 @@ std::string BackendOptions::Check() const {
     return "need 0 < min_depth_m < max_depth_m";
   if (!(stereo_only_outlier_pixels >= 0)) return "stereo_only_outlier_pixels must be >= 0";
   if (!(predicted_gate_pixels >= 0)) return "predicted_gate_pixels must be >= 0";
+  if (!(marginalize_tracked_max_depth_m >= 0))
+    return "marginalize_tracked_max_depth_m must be >= 0 (0: no limit)";
   if (!(predicted_gate_median_factor >= 0)) return "predicted_gate_median_factor must be >= 0";
   if (!(ground_vehicle_lateral_sigma_m_s >= 0) || !(ground_vehicle_vertical_sigma_m_s >= 0))
     return "ground_vehicle_lateral_sigma_m_s and ground_vehicle_vertical_sigma_m_s must be >= 0 "

@@ -59,6 +59,9 @@ TEST(Backend, GroundVehicleSigmasAreChecked) {
   EXPECT_EQ(o.Check(), "");
   o.ground_vehicle_vertical_sigma_m_s = -0.05;
   EXPECT_NE(o.Check().find("ground_vehicle_vertical_sigma_m_s"), std::string::npos);
+  o = BackendOptions();
+  o.marginalize_tracked_max_depth_m = std::nan("");
+  EXPECT_NE(o.Check().find("marginalize_tracked_max_depth_m"), std::string::npos);
 }
 
 TEST(Backend, StereoInertialOnSyntheticRoom) {
