@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
+#include <opencv2/core/hal/hal.hpp>
 #include <opencv2/features2d.hpp>
 #include <opencv2/video/tracking.hpp>
 #include <spdlog/spdlog.h>
@@ -22,6 +23,8 @@ namespace optinav::vio {
 
 std::string LoopClosureOptions::Check() const {
   if (orb_features < 50) return "loop_closure.orb_features must be >= 50";
+  if (orb_fast_threshold < 1 || orb_fast_threshold > 255)
+    return "loop_closure.orb_fast_threshold must be 1..255";
   if (!(stereo_epipolar_px > 0) || !(pnp_px > 0))
     return "loop_closure pixel thresholds must be > 0";
   if (!(max_depth_baselines > 1)) return "loop_closure.max_depth_baselines must be > 1";
@@ -34,6 +37,12 @@ std::string LoopClosureOptions::Check() const {
   if (max_candidates < 1) return "loop_closure.max_candidates must be >= 1";
   if (!(match_ratio > 0 && match_ratio <= 1)) return "loop_closure.match_ratio must be in (0, 1]";
   if (min_inliers < 6) return "loop_closure.min_inliers must be >= 6";
+  if (!(guided_radius_px >= 0)) return "loop_closure.guided_radius_px must be >= 0";
+  if (guided_seed_inliers < 6) return "loop_closure.guided_seed_inliers must be >= 6";
+  if (guided_max_hamming < 0 || guided_max_hamming > 256)
+    return "loop_closure.guided_max_hamming must be 0..256";
+  if (!(guided_ratio > 0 && guided_ratio <= 1))
+    return "loop_closure.guided_ratio must be in (0, 1]";
   if (!(min_interval_s >= 0)) return "loop_closure.min_interval_s must be >= 0";
   if (!(odometry_sigma_m_per_m >= 0) || !(odometry_min_sigma_m > 0) ||
       !(odometry_sigma_rad_per_m >= 0) || !(odometry_min_sigma_rad > 0) || !(loop_sigma_m > 0) ||
@@ -186,7 +195,8 @@ LoopCloser::LoopCloser(const camera::StereoRig& rig, const Rigid3d& body_from_ca
       options_(options),
       gravity_aligned_(gravity_aligned) {
   if (const std::string e = options.Check(); !e.empty()) throw Error(e, {.field = "loop_closure"});
-  orb_ = cv::ORB::create(options.orb_features);
+  orb_ = cv::ORB::create(options.orb_features, 1.2f, 8, 31, 0, 2, cv::ORB::HARRIS_SCORE, 31,
+                         options.orb_fast_threshold);
   essential_ = rig.Essential();
 }
 
@@ -235,6 +245,74 @@ LoopCloser::Keyframe LoopCloser::Describe(const StateEstimate& state, const cv::
   return kf;
 }
 
+namespace {
+
+// OpenCV's PnP pose (Rodrigues vector, translation) as a transform.
+Rigid3d PoseFromRvecTvec(const cv::Mat& rvec, const cv::Mat& tvec) {
+  cv::Mat r;
+  cv::Rodrigues(rvec, r);
+  Eigen::Matrix3d rotation;
+  cv::cv2eigen(r, rotation);
+  Eigen::Matrix<double, 3, 4> m;
+  m.leftCols<3>() = rotation;
+  m.col(3) << tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2);
+  return Rigid3d::FromMatrix(m);
+}
+
+}  // namespace
+
+std::vector<std::pair<int, int>> GuidedLoopMatches(const std::vector<Eigen::Vector3d>& points,
+                                                   const cv::Mat& point_descriptors,
+                                                   const std::vector<Eigen::Vector2d>& normalized,
+                                                   const cv::Mat& descriptors,
+                                                   const Rigid3d& cur_cam_from_cand_cam,
+                                                   double radius, int max_hamming, double ratio) {
+  std::vector<std::pair<int, int>> out;
+  if (normalized.empty() || points.empty()) return out;
+  if (point_descriptors.rows != static_cast<int>(points.size()) ||
+      descriptors.rows != static_cast<int>(normalized.size()) ||
+      point_descriptors.cols != descriptors.cols || point_descriptors.type() != CV_8U ||
+      descriptors.type() != CV_8U)
+    throw Error("GuidedLoopMatches: descriptors must be 8-bit rows, one per point / feature");
+  // The current features sorted by x, for the search window.
+  std::vector<int> by_x(normalized.size());
+  for (size_t j = 0; j < by_x.size(); ++j) by_x[j] = static_cast<int>(j);
+  std::sort(by_x.begin(), by_x.end(),
+            [&](int a, int b) { return normalized[a].x() < normalized[b].x(); });
+  const int none = std::numeric_limits<int>::max();
+  std::vector<int> best_point(normalized.size(), -1);
+  std::vector<int> best_distance(normalized.size(), none);
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector3d q = cur_cam_from_cand_cam * points[i];
+    if (q.z() <= 0) continue;
+    const Eigen::Vector2d projected = q.head<2>() / q.z();
+    auto it = std::lower_bound(by_x.begin(), by_x.end(), projected.x() - radius,
+                               [&](int j, double x) { return normalized[j].x() < x; });
+    int best = -1, d1 = none, d2 = none;
+    const uchar* a = point_descriptors.ptr<uchar>(static_cast<int>(i));
+    for (; it != by_x.end() && normalized[*it].x() <= projected.x() + radius; ++it) {
+      if ((normalized[*it] - projected).norm() > radius) continue;
+      const int d = cv::hal::normHamming(a, descriptors.ptr<uchar>(*it), descriptors.cols);
+      if (d < d1) {
+        d2 = d1;
+        d1 = d;
+        best = *it;
+      } else if (d < d2) {
+        d2 = d;
+      }
+    }
+    if (best < 0 || d1 > max_hamming) continue;
+    if (d2 != none && d1 >= ratio * d2) continue;
+    if (d1 < best_distance[best]) {
+      best_distance[best] = d1;
+      best_point[best] = static_cast<int>(i);
+    }
+  }
+  for (size_t j = 0; j < best_point.size(); ++j)
+    if (best_point[j] >= 0) out.emplace_back(best_point[j], static_cast<int>(j));
+  return out;
+}
+
 bool LoopCloser::Match(const Keyframe& candidate, const Keyframe& current, const Rigid3d& predicted,
                        double radius_m, LoopEdge* edge) const {
   const std::vector<cv::DMatch> matches =
@@ -243,7 +321,9 @@ bool LoopCloser::Match(const Keyframe& candidate, const Keyframe& current, const
   spdlog::debug("vio: loop candidate {:.3f} s for {:.3f} s: {} points, {} matches",
                 candidate.t_ns * 1e-9, current.t_ns * 1e-9, candidate.points.size(),
                 matches.size());
-  if (static_cast<int>(matches.size()) < options_.min_inliers) return false;
+  const bool guided = options_.guided_radius_px > 0;
+  const int first_min_inliers = guided ? options_.guided_seed_inliers : options_.min_inliers;
+  if (static_cast<int>(matches.size()) < first_min_inliers) return false;
   std::vector<cv::Point3f> object;
   std::vector<cv::Point2f> image;
   for (const cv::DMatch& m : matches) {
@@ -261,19 +341,33 @@ bool LoopCloser::Match(const Keyframe& candidate, const Keyframe& current, const
     return false;
   spdlog::debug("vio: loop candidate {:.3f} s: {} PnP inliers", candidate.t_ns * 1e-9,
                 inlier_idx.size());
-  if (static_cast<int>(inlier_idx.size()) < options_.min_inliers) return false;
+  if (static_cast<int>(inlier_idx.size()) < first_min_inliers) return false;
+  if (guided) {
+    const Rigid3d guide = PoseFromRvecTvec(rvec, tvec);
+    object.clear();
+    image.clear();
+    for (const auto& [i, j] :
+         GuidedLoopMatches(candidate.points, candidate.point_descriptors, current.normalized,
+                           current.descriptors, guide, options_.guided_radius_px / rig_.left.fx,
+                           options_.guided_max_hamming, options_.guided_ratio)) {
+      const Eigen::Vector3d& p = candidate.points[i];
+      object.emplace_back(p.x(), p.y(), p.z());
+      image.emplace_back(current.normalized[j].x(), current.normalized[j].y());
+    }
+    inlier_idx.clear();
+    if (static_cast<int>(object.size()) < options_.min_inliers ||
+        !cv::solvePnPRansac(object, image, K, cv::noArray(), rvec, tvec, true, 300, threshold,
+                            0.999, inlier_idx, cv::SOLVEPNP_ITERATIVE))
+      return false;
+    spdlog::debug("vio: loop candidate {:.3f} s: {} guided matches, {} PnP inliers",
+                  candidate.t_ns * 1e-9, object.size(), inlier_idx.size());
+    if (static_cast<int>(inlier_idx.size()) < options_.min_inliers) return false;
+  }
   std::vector<cv::Point3f> obj_in;
   std::vector<cv::Point2f> img_in;
   for (int k : inlier_idx) obj_in.push_back(object[k]), img_in.push_back(image[k]);
   cv::solvePnP(obj_in, img_in, K, cv::noArray(), rvec, tvec, true, cv::SOLVEPNP_ITERATIVE);
-  cv::Mat R;
-  cv::Rodrigues(rvec, R);
-  Eigen::Matrix<double, 3, 4> m;
-  Eigen::Matrix3d Re;
-  cv::cv2eigen(R, Re);
-  m.leftCols<3>() = Re;
-  m.col(3) << tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2);
-  const Rigid3d cur_cam_from_cand_cam = Rigid3d::FromMatrix(m);
+  const Rigid3d cur_cam_from_cand_cam = PoseFromRvecTvec(rvec, tvec);
   // Count the inliers again after the refinement.
   int n = 0;
   for (size_t k = 0; k < obj_in.size(); ++k) {

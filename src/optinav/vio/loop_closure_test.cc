@@ -12,6 +12,7 @@
 #include <opencv2/calib3d.hpp>
 
 #include "optinav/eval/metrics.h"
+#include "optinav/features/features.h"
 #include "optinav/io/trajectory_io.h"
 #include "optinav/sim/simulation.h"
 #include "optinav/util/error.h"
@@ -26,6 +27,18 @@ TEST(LoopClosure, ChecksOptions) {
   LoopClosureOptions o;
   o.min_inliers = 3;
   EXPECT_NE(o.Check().find("min_inliers"), std::string::npos);
+  o = {};
+  o.orb_fast_threshold = 0;
+  EXPECT_NE(o.Check().find("orb_fast_threshold"), std::string::npos);
+  o = {};
+  o.guided_radius_px = -1;
+  EXPECT_NE(o.Check().find("guided_radius_px"), std::string::npos);
+  o = {};
+  o.guided_seed_inliers = 5;
+  EXPECT_NE(o.Check().find("guided_seed_inliers"), std::string::npos);
+  o = {};
+  o.guided_ratio = 0;
+  EXPECT_NE(o.Check().find("guided_ratio"), std::string::npos);
   o = {};
   o.loop_sigma_m = 0;
   EXPECT_NE(o.Check().find("sigmas"), std::string::npos);
@@ -295,6 +308,75 @@ TEST(LoopClosure, PnpSigmasMatchTheirNoise) {
     EXPECT_NEAR(r.predicted_rad / r.empirical_rad, 1.0, 0.25);
   }
   EXPECT_GT(far.predicted_m, 3 * near.predicted_m) << "far points must weigh less";
+}
+
+// Guided matching on a synthetic place seen again: 300 stereo points, each current feature the
+// candidate's descriptor with 12 of 256 bits flipped, and each also seen as a look-alike corner
+// elsewhere in the image (12 other bits flipped), as fog leaves faint corners that differ little.
+// Matched over the whole image, the ratio test rejects nearly all of them; projected with a pose
+// 2 px off, the guided search finds them within 8 px, one to one, and none wrong.
+TEST(LoopClosure, GuidedMatchingFindsWhatTheRatioTestRejects) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-1, 1);
+  std::uniform_int_distribution<int> byte(0, 255), bit(0, 255);
+  const double f = 200;  // pixels per normalized unit
+  const Rigid3d cur_from_cand(Eigen::Quaterniond(Eigen::AngleAxisd(0.05, Eigen::Vector3d::UnitY())),
+                              Eigen::Vector3d(0.3, 0.0, -4.0));
+  auto flip = [&](const cv::Mat& row) {
+    cv::Mat out = row.clone();
+    for (int k = 0; k < 12; ++k) {
+      const int b = bit(rng);
+      out.at<uchar>(0, b / 8) ^= static_cast<uchar>(1 << (b % 8));
+    }
+    return out;
+  };
+  std::vector<Eigen::Vector3d> points;
+  cv::Mat point_descriptors;
+  std::vector<Eigen::Vector2d> normalized;
+  cv::Mat descriptors;
+  std::vector<int> truth;  // feature -> point (-1: a look-alike)
+  while (points.size() < 300) {
+    const Eigen::Vector3d p(6 * u(rng), 2 * u(rng), 12 + 8 * u(rng));
+    const Eigen::Vector3d q = cur_from_cand * p;
+    const Eigen::Vector2d n = q.head<2>() / q.z();
+    if (std::abs(n.x()) > 1 || std::abs(n.y()) > 0.75) continue;
+    cv::Mat d(1, 32, CV_8U);
+    for (int k = 0; k < 32; ++k) d.at<uchar>(0, k) = static_cast<uchar>(byte(rng));
+    points.push_back(p);
+    point_descriptors.push_back(d);
+    normalized.push_back(n + Eigen::Vector2d(u(rng), u(rng)) * 0.5 / f);
+    descriptors.push_back(flip(d));
+    truth.push_back(static_cast<int>(points.size()) - 1);
+    normalized.push_back(Eigen::Vector2d(u(rng), 0.75 * u(rng)));  // the look-alike
+    descriptors.push_back(flip(d));
+    truth.push_back(-1);
+  }
+  const std::vector<cv::DMatch> ratio =
+      features::MatchWithRatio(point_descriptors, descriptors, cv::NORM_HAMMING, 0.8f);
+  // The guiding pose: turned by 2 px.
+  Rigid3d guide = cur_from_cand;
+  guide.rotation =
+      Eigen::Quaterniond(Eigen::AngleAxisd(2.0 / f, Eigen::Vector3d::UnitY())) * guide.rotation;
+  guide.translation = Eigen::AngleAxisd(2.0 / f, Eigen::Vector3d::UnitY()) * guide.translation;
+  const auto guided = GuidedLoopMatches(points, point_descriptors, normalized, descriptors, guide,
+                                        8.0 / f, 64, 0.9);
+  int correct = 0, wrong = 0;
+  std::vector<int> used(normalized.size(), 0);
+  for (const auto& [i, j] : guided) {
+    (truth[j] == i ? correct : wrong) += 1;
+    ++used[j];
+  }
+  std::printf(
+      "guided loop matching, 300 points each with a look-alike: ratio test over the image %zu "
+      "matches; guided (8 px, pose 2 px off) %d correct, %d wrong\n",
+      ratio.size(), correct, wrong);
+  EXPECT_LT(ratio.size(), 60u);
+  EXPECT_GE(correct, 270);
+  EXPECT_EQ(wrong, 0);
+  for (int n : used) EXPECT_LE(n, 1);
+  EXPECT_THROW(GuidedLoopMatches(points, point_descriptors.rowRange(0, 10), normalized, descriptors,
+                                 guide, 8.0 / f, 64, 0.9),
+               Error);
 }
 
 Rigid3d At(const Trajectory& t, int64_t t_ns) {

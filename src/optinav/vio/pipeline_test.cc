@@ -641,6 +641,7 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(fl.stereo_only, dl.stereo_only);
   EXPECT_EQ(fl.stereo_imu, dl.stereo_imu);
   EXPECT_EQ(fl.orb_features, dl.orb_features);
+  EXPECT_EQ(fl.orb_fast_threshold, dl.orb_fast_threshold);
   EXPECT_EQ(fl.stereo_epipolar_px, dl.stereo_epipolar_px);
   EXPECT_EQ(fl.max_depth_baselines, dl.max_depth_baselines);
   EXPECT_EQ(fl.min_separation_s, dl.min_separation_s);
@@ -655,6 +656,10 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(fl.match_ratio, dl.match_ratio);
   EXPECT_EQ(fl.pnp_px, dl.pnp_px);
   EXPECT_EQ(fl.min_inliers, dl.min_inliers);
+  EXPECT_EQ(fl.guided_radius_px, dl.guided_radius_px);
+  EXPECT_EQ(fl.guided_seed_inliers, dl.guided_seed_inliers);
+  EXPECT_EQ(fl.guided_max_hamming, dl.guided_max_hamming);
+  EXPECT_EQ(fl.guided_ratio, dl.guided_ratio);
   EXPECT_EQ(fl.min_interval_s, dl.min_interval_s);
   EXPECT_EQ(fl.support_min_path_m, dl.support_min_path_m);
   EXPECT_EQ(fl.support_tolerance_m, dl.support_tolerance_m);
