@@ -51,9 +51,21 @@ struct SlidingWindowBackend::State {
 };
 
 struct SlidingWindowBackend::Landmark {
+  // An observation by a keyframe that left the window, its pose held fixed
+  // (BackendOptions::anchored_observations_per_landmark).
+  struct Anchor {
+    int64_t t_ns = 0;
+    Rigid3d world_from_body;
+    StereoObservation observation;
+  };
   double position[kPointSize] = {0, 0, 0};
   bool initialized = false;
   int num_states = 0;  // states in the window observing it
+  std::vector<Anchor> anchors;
+  // Constrained by the window's solve: seen by two states, or by one and an anchor.
+  bool Constrained() const {
+    return initialized && (num_states >= 2 || (num_states >= 1 && !anchors.empty()));
+  }
 };
 
 Rigid3d WorldAlignment::EnuFromWorld() const {
@@ -73,6 +85,14 @@ std::string BackendOptions::Check() const {
   if (!(marginalize_tracked_max_depth_m >= 0))
     return "marginalize_tracked_max_depth_m must be >= 0 (0: no limit)";
   if (!(predicted_gate_median_factor >= 0)) return "predicted_gate_median_factor must be >= 0";
+  if (anchored_observations_per_landmark < 0)
+    return "anchored_observations_per_landmark must be >= 0 (0: off), got " +
+           std::to_string(anchored_observations_per_landmark);
+  if (!(anchored_max_age_s >= 0)) return "anchored_max_age_s must be >= 0 (0: no limit)";
+  if (!(anchored_max_depth_m >= 0)) return "anchored_max_depth_m must be >= 0 (0: no limit)";
+  if (anchored_observations_per_landmark > 0 && marginalize_tracked_landmarks)
+    return "anchored_observations_per_landmark and marginalize_tracked_landmarks exclude each "
+           "other (both keep what the oldest keyframe saw of a tracked landmark)";
   if (!(ground_vehicle_lateral_sigma_m_s >= 0) || !(ground_vehicle_vertical_sigma_m_s >= 0))
     return "ground_vehicle_lateral_sigma_m_s and ground_vehicle_vertical_sigma_m_s must be >= 0 "
            "(0: off)";
@@ -467,8 +487,7 @@ StateEstimate SlidingWindowBackend::AddFrame(int64_t t_ns, const ImuPreintegrati
   int constrained = 0;
   for (const auto& [id, obs] : added->observations) {
     const auto it = landmarks_.find(id);
-    if (it != landmarks_.end() && it->second->initialized && it->second->num_states >= 2)
-      ++constrained;
+    if (it != landmarks_.end() && it->second->Constrained()) ++constrained;
   }
   stats_.newest_constrained_landmarks = constrained;
   return Newest();
@@ -486,15 +505,15 @@ int64_t SlidingWindowBackend::oldest_t_ns() const {
 
 std::vector<std::unique_ptr<ResidualSpec>> SlidingWindowBackend::BuildResiduals(
     const std::function<bool(const State*)>& state_filter,
-    const std::function<bool(const Landmark*)>& landmark_filter) const {
+    const std::function<bool(const Landmark*)>& landmark_filter, bool with_anchors) const {
   std::vector<std::unique_ptr<ResidualSpec>> specs;
   const double focal = rig_.focal_px;
+  std::set<const Landmark*> used;  // landmarks with a residual, for their anchors
   for (const auto& state : states_) {
     if (!state_filter(state.get())) continue;
     for (const auto& [id, obs] : state->observations) {
       Landmark* landmark = landmarks_.at(id).get();
-      if (!landmark->initialized || landmark->num_states < 2 || !landmark_filter(landmark))
-        continue;
+      if (!landmark->Constrained() || !landmark_filter(landmark)) continue;
       auto add = [&](const Rigid3d& cam_from_body, const Eigen::Vector2d& observed) {
         auto spec = std::make_unique<ResidualSpec>();
         spec->cost.reset(
@@ -505,6 +524,24 @@ std::vector<std::unique_ptr<ResidualSpec>> SlidingWindowBackend::BuildResiduals(
       };
       add(rig_.cam0_from_body, obs.left);
       if (obs.right) add(rig_.cam1_from_body, *obs.right);
+      if (with_anchors && !landmark->anchors.empty()) used.insert(landmark);
+    }
+  }
+  // In id order (deterministic).
+  for (const auto& [id, landmark_ptr] : landmarks_) {
+    Landmark* landmark = landmark_ptr.get();
+    if (!used.count(landmark)) continue;
+    for (const Landmark::Anchor& anchor : landmark->anchors) {
+      auto add = [&](const Rigid3d& cam_from_body, const Eigen::Vector2d& observed) {
+        auto spec = std::make_unique<ResidualSpec>();
+        spec->cost.reset(CreateFixedPoseReprojectionFactor(anchor.world_from_body, cam_from_body,
+                                                           observed, focal, options_.pixel_sigma));
+        spec->loss = huber_.get();
+        spec->blocks = {landmark->position};
+        specs.push_back(std::move(spec));
+      };
+      add(rig_.cam0_from_body, anchor.observation.left);
+      if (anchor.observation.right) add(rig_.cam1_from_body, *anchor.observation.right);
     }
   }
   return specs;
@@ -582,7 +619,7 @@ void SlidingWindowBackend::OptimizeNewest() {
   }
   int num_observations = 0;
   for (auto& spec : BuildResiduals([&](const State* s) { return s == &newest; },
-                                   [](const Landmark*) { return true; })) {
+                                   [](const Landmark*) { return true; }, /*with_anchors=*/false)) {
     if (!problem.HasParameterBlock(spec->blocks[1])) {
       problem.AddParameterBlock(spec->blocks[1], kPointSize);
       problem.SetParameterBlockConstant(spec->blocks[1]);
@@ -621,7 +658,7 @@ void SlidingWindowBackend::Optimize() {
       manifolds.push_back(manifold);
     }
   };
-  for (const auto& spec : reprojection) add_block(spec->blocks[1], kPointSize, nullptr);
+  for (const auto& spec : reprojection) add_block(spec->blocks.back(), kPointSize, nullptr);
   const size_t num_landmarks = live.size();
   for (const auto& s : states_) {
     add_block(s->pose, kPoseSize, PoseManifold());
@@ -776,6 +813,14 @@ void SlidingWindowBackend::RemoveOutliers() {
   }
   RejectLandmarks(bad);
   stats_.num_outliers_removed = static_cast<int>(bad.size());
+  // An anchored observation that disagrees is dropped, the landmark kept (its fixed pose cannot
+  // move to meet it).
+  for (auto& [id, landmark] : landmarks_) {
+    if (!landmark->initialized) continue;
+    std::erase_if(landmark->anchors, [&](const Landmark::Anchor& a) {
+      return ReprojectionErrorPx(a.world_from_body.Inverse(), *landmark, a.observation) > limit;
+    });
+  }
 }
 
 void SlidingWindowBackend::RelinearizeBiases() {
@@ -804,9 +849,23 @@ void SlidingWindowBackend::MarginalizeOldest() {
   std::vector<double*> leaving_blocks;
   for (const auto& [id, obs] : oldest->observations) {
     Landmark* l = landmarks_.at(id).get();
-    if (!l->initialized || l->num_states < 2) continue;
+    if (!l->Constrained()) continue;
     const bool tracked = newest->observations.count(id) > 0;
-    if (tracked && !options_.marginalize_tracked_landmarks) continue;
+    if (tracked && !options_.marginalize_tracked_landmarks) {
+      // Dropped from the window; with anchoring kept against the oldest keyframe's fixed pose.
+      if (options_.anchored_max_age_s > 0)
+        std::erase_if(l->anchors, [&](const Landmark::Anchor& a) {
+          return (newest->t_ns - a.t_ns) * 1e-9 > options_.anchored_max_age_s;
+        });
+      const double depth =
+          (cam0_from_world * Eigen::Vector3d(l->position[0], l->position[1], l->position[2])).z();
+      if (static_cast<int>(l->anchors.size()) < options_.anchored_observations_per_landmark &&
+          (options_.anchored_max_depth_m <= 0 || depth < options_.anchored_max_depth_m)) {
+        l->anchors.push_back({oldest->t_ns, oldest->WorldFromBody(), obs});
+        if (!options_.anchored_stereo) l->anchors.back().observation.right.reset();
+      }
+      continue;
+    }
     if (tracked && options_.marginalize_tracked_max_depth_m > 0) {
       const Eigen::Vector3d p =
           cam0_from_world * Eigen::Vector3d(l->position[0], l->position[1], l->position[2]);

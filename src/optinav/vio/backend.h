@@ -56,6 +56,25 @@ struct BackendOptions {
   bool marginalize_tracked_landmarks = false;
   // ... only those nearer than this to the newest frame's left camera (m; 0: all).
   double marginalize_tracked_max_depth_m = 0.0;
+  // When the oldest keyframe leaves: a landmark it observes that the newest frame still tracks
+  // keeps up to this many of the observations of keyframes that left, as reprojection residuals
+  // against those keyframes' poses held fixed (0: off, the oldest keyframe's observation is
+  // dropped). A landmark tracked for seconds then ties the window to where the first keyframes
+  // saw it, as a local map's fixed keyframes do in keyframe bundle adjustment, instead of only
+  // over the window's span. Not with marginalize_tracked_landmarks (which keeps that
+  // information in the prior instead).
+  int anchored_observations_per_landmark = 0;
+  // ... and drops anchored observations older than this before the newest frame (s; 0: kept as
+  // long as the landmark).
+  double anchored_max_age_s = 0.0;
+  // ... for landmarks nearer than this to the newest frame's left camera (m; 0: all).
+  double anchored_max_depth_m = 0.0;
+  // ... with the right camera's observation too (false, the default: the left camera's only, a
+  // bearing from the fixed pose; the landmark's depth comes from the window's stereo
+  // observations). With both, the old keyframe's stereo pair fixes the landmark in 3D and the
+  // window is pinned to its depth error: on the car route in stereo mode over three seeds the
+  // left camera's alone gave the lower error on every condition tried (docs/VIO.md).
+  bool anchored_stereo = false;
   // With IMU, before the solve: a landmark whose newest observation reprojects farther than this
   // from the IMU-predicted pose of the new frame is rejected (with its track) instead of entering
   // the solve (0: off). Falling snow and leaves are tracked like the scene but drift 1-1.5 m/s
@@ -266,9 +285,11 @@ class SlidingWindowBackend {
   void DropNewestIfNotKeyframe(ImuPreintegration* next_preintegration);
   void AddObservations(State* state, const std::vector<StereoObservation>& observations);
   void TriangulateNew(State* state);
+  // The reprojection residuals of the states and landmarks the filters pass (blocks: pose, point),
+  // then with `with_anchors` those of the passed landmarks' anchored observations (block: point).
   std::vector<std::unique_ptr<ResidualSpec>> BuildResiduals(
       const std::function<bool(const State*)>& state_filter,
-      const std::function<bool(const Landmark*)>& landmark_filter) const;
+      const std::function<bool(const Landmark*)>& landmark_filter, bool with_anchors = true) const;
   void Optimize();
   void OptimizeNewest();
   void RecordSummary(const ceres::Solver::Summary& summary);

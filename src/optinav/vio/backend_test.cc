@@ -95,27 +95,60 @@ TEST(Backend, StereoOnlyOnSyntheticRoom) {
 
 // Long tracks through a short window: a landmark the newest frame still tracks loses the oldest
 // keyframe's observation of it at every marginalisation, unless it is split into the prior
-// (marginalize_tracked_landmarks). Kept, that information holds the rotation over the tracks'
-// whole life, not only the window's; the drift must fall.
-TEST(Backend, SplittingTrackedLandmarksKeepsTheirInformation) {
+// (marginalize_tracked_landmarks) or kept against that keyframe's fixed pose
+// (anchored_observations_per_landmark: the landmark ties the window to the keyframe that first
+// saw it; with the left camera's observation, the default, more of them, or both cameras').
+// Kept, that information holds the rotation over the tracks' whole life, not only the window's;
+// the drift must fall.
+TEST(Backend, KeptTrackedLandmarkObservationsHoldTheRotation) {
   const SyntheticScene scene;
   const auto frames = scene.Generate(20.0, 20.0, 0.7, true, 5);
   BackendOptions options;
   options.use_imu = false;
   options.window_keyframes = 4;
   const RunResult dropped = RunBackend(scene, frames, options, 2);
-  options.marginalize_tracked_landmarks = true;
-  const RunResult split = RunBackend(scene, frames, options, 2);
+  BackendOptions split_options = options;
+  split_options.marginalize_tracked_landmarks = true;
+  const RunResult split = RunBackend(scene, frames, split_options, 2);
+  options.anchored_observations_per_landmark = 1;
+  const RunResult one = RunBackend(scene, frames, options, 2);
+  options.anchored_observations_per_landmark = 3;
+  const RunResult three = RunBackend(scene, frames, options, 2);
+  options.anchored_observations_per_landmark = 1;
+  options.anchored_stereo = true;
+  const RunResult stereo = RunBackend(scene, frames, options, 2);
+  const double deg = 180 / M_PI;
   std::printf(
-      "stereo-only, window 4, %.1f m in 20 s: position RMSE %.4f m dropped, %.4f m split; max "
-      "rotation error %.3f deg dropped, %.3f deg split (split: < 0.2 m, < 2 deg, both below "
-      "the dropped ones)\n",
-      split.distance_m, dropped.position_rmse_m, split.position_rmse_m,
-      dropped.max_rotation_error_rad * 180 / M_PI, split.max_rotation_error_rad * 180 / M_PI);
-  EXPECT_LT(split.position_rmse_m, 0.2);
-  EXPECT_LT(split.max_rotation_error_rad * 180 / M_PI, 2.0);
-  EXPECT_LT(split.position_rmse_m, dropped.position_rmse_m);
-  EXPECT_LT(split.max_rotation_error_rad, dropped.max_rotation_error_rad);
+      "stereo-only, window 4, %.1f m in 20 s: position RMSE %.4f m dropped, %.4f m split, "
+      "anchored %.4f m (one, left camera), %.4f m (three), %.4f m (one, both cameras); max "
+      "rotation error %.3f / %.3f / %.3f / %.3f / %.3f deg (kept: < 0.2 m, < 2 deg, below the "
+      "dropped ones)\n",
+      split.distance_m, dropped.position_rmse_m, split.position_rmse_m, one.position_rmse_m,
+      three.position_rmse_m, stereo.position_rmse_m, dropped.max_rotation_error_rad * deg,
+      split.max_rotation_error_rad * deg, one.max_rotation_error_rad * deg,
+      three.max_rotation_error_rad * deg, stereo.max_rotation_error_rad * deg);
+  for (const RunResult* r : {&split, &one, &three, &stereo}) {
+    EXPECT_LT(r->position_rmse_m, 0.2);
+    EXPECT_LT(r->max_rotation_error_rad * deg, 2.0);
+    EXPECT_LT(r->position_rmse_m, dropped.position_rmse_m);
+    EXPECT_LT(r->max_rotation_error_rad, dropped.max_rotation_error_rad);
+  }
+}
+
+TEST(Backend, AnchoringOptionsAreChecked) {
+  BackendOptions o;
+  o.anchored_observations_per_landmark = -1;
+  EXPECT_NE(o.Check().find("anchored_observations_per_landmark"), std::string::npos);
+  o.anchored_observations_per_landmark = 2;
+  EXPECT_EQ(o.Check(), "");
+  o.anchored_max_age_s = std::nan("");
+  EXPECT_NE(o.Check().find("anchored_max_age_s"), std::string::npos);
+  o.anchored_max_age_s = 0;
+  o.anchored_max_depth_m = -1;
+  EXPECT_NE(o.Check().find("anchored_max_depth_m"), std::string::npos);
+  o.anchored_max_depth_m = 0;
+  o.marginalize_tracked_landmarks = true;
+  EXPECT_NE(o.Check().find("exclude each other"), std::string::npos);
 }
 
 // Falling snow or leaves: points that drift together through the scene (1.2 m/s, the wind's

@@ -33,6 +33,8 @@ std::string VioOptions::Check() const {
   if (!(stereo_only_outlier_pixels >= 0)) return "backend.stereo_only_outlier_pixels must be >= 0";
   if (!(stereo_only_initial_trust_region_radius > 0) || !(stereo_only_function_tolerance > 0))
     return "backend.stereo_only_initial_trust_region_radius and function_tolerance must be > 0";
+  if (stereo_only_anchored_observations_per_landmark < 0)
+    return "backend.stereo_only_anchored_observations_per_landmark must be >= 0 (0: off)";
   if (!(lowcontrast_gyro_walk_scale > 0 && lowcontrast_gyro_walk_scale <= 1))
     return "backend.lowcontrast_gyro_walk_scale must be in (0, 1]";
   if (!(init_window_s > 0)) return "init_window_s must be > 0";
@@ -104,6 +106,7 @@ std::map<std::string, Section> OptionSections(VioOptions& o) {
         {"highpass_sigma_px", &f.highpass_sigma_px},
         {"local_norm_sigma_px", &f.local_norm_sigma_px},
         {"local_norm_floor", &f.local_norm_floor},
+        {"local_norm_track_only", &f.local_norm_track_only},
         {"median_filter_px", &f.median_filter_px},
         {"corner_block_px", &f.corner_block_px},
         {"keyframe_max_interval_s", &f.keyframe_max_interval_s},
@@ -120,6 +123,10 @@ std::map<std::string, Section> OptionSections(VioOptions& o) {
         {"outlier_pixels", &b.outlier_pixels},
         {"marginalize_tracked_landmarks", &b.marginalize_tracked_landmarks},
         {"marginalize_tracked_max_depth_m", &b.marginalize_tracked_max_depth_m},
+        {"anchored_observations_per_landmark", &b.anchored_observations_per_landmark},
+        {"anchored_max_age_s", &b.anchored_max_age_s},
+        {"anchored_max_depth_m", &b.anchored_max_depth_m},
+        {"anchored_stereo", &b.anchored_stereo},
         {"predicted_gate_pixels", &b.predicted_gate_pixels},
         {"predicted_gate_median_factor", &b.predicted_gate_median_factor},
         {"ground_vehicle_lateral_sigma_m_s", &b.ground_vehicle_lateral_sigma_m_s},
@@ -128,6 +135,8 @@ std::map<std::string, Section> OptionSections(VioOptions& o) {
         {"stereo_only_initial_trust_region_radius", &o.stereo_only_initial_trust_region_radius},
         {"stereo_only_function_tolerance", &o.stereo_only_function_tolerance},
         {"stereo_only_marginalize_tracked_landmarks", &o.stereo_only_marginalize_tracked_landmarks},
+        {"stereo_only_anchored_observations_per_landmark",
+         &o.stereo_only_anchored_observations_per_landmark},
         {"lowcontrast_gyro_walk_scale", &o.lowcontrast_gyro_walk_scale},
         {"min_depth_m", &b.min_depth_m},
         {"max_depth_m", &b.max_depth_m},
@@ -295,6 +304,8 @@ BackendOptions WithMode(BackendOptions b, const VioOptions& o, const ImuNoise& n
     b.initial_trust_region_radius = o.stereo_only_initial_trust_region_radius;
     b.function_tolerance = o.stereo_only_function_tolerance;
     b.marginalize_tracked_landmarks = o.stereo_only_marginalize_tracked_landmarks;
+    b.anchored_observations_per_landmark =
+        b.marginalize_tracked_landmarks ? 0 : o.stereo_only_anchored_observations_per_landmark;
   }
   b.imu_noise = noise;
   return b;

@@ -87,6 +87,11 @@ struct VioOptions {
   // vio/sim_accuracy CarStereoOnly worse (0.35 -> 0.58 m, past its guard); with the IMU the yaw
   // drifted more (fog 100 % 1.74 -> 4.09 m). docs/VIO.md weather 2026-12-04 (later).
   bool stereo_only_marginalize_tracked_landmarks = false;
+  // Stereo-only mode: BackendOptions::anchored_observations_per_landmark (YAML backend.
+  // stereo_only_anchored_observations_per_landmark; backend.anchored_observations_per_landmark
+  // is the stereo-inertial one). 0 when the split above is on (it keeps the same information in
+  // the prior instead). docs/VIO.md weather 2026-12-04 (night).
+  int stereo_only_anchored_observations_per_landmark = 1;
   // Stereo-inertial (YAML backend.lowcontrast_gyro_walk_scale, in (0, 1]; 1: as modelled): on
   // frames the frontend measures low in contrast (FrontendStats::low_contrast: the
   // frontend.clahe_below_std state, when it is > 0 and CLAHE, the stretch or the corner check is

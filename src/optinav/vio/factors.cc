@@ -312,6 +312,43 @@ ceres::CostFunction* CreateReprojectionFactor(const Rigid3d& cam_from_body,
   return new ReprojectionCost(cam_from_body, observed, focal_px / sigma_px);
 }
 
+namespace {
+
+// ReprojectionCost with its pose block held at a value of its own.
+class FixedPoseReprojectionCost : public ceres::SizedCostFunction<2, kPointSize> {
+ public:
+  FixedPoseReprojectionCost(const Rigid3d& world_from_body, const Rigid3d& cam_from_body,
+                            const Eigen::Vector2d& observed, double scale)
+      : inner_(cam_from_body, observed, scale) {
+    const Eigen::Quaterniond q = world_from_body.rotation.normalized();
+    pose_[0] = world_from_body.translation.x();
+    pose_[1] = world_from_body.translation.y();
+    pose_[2] = world_from_body.translation.z();
+    pose_[3] = q.x(), pose_[4] = q.y(), pose_[5] = q.z(), pose_[6] = q.w();
+  }
+
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    const double* inner_parameters[2] = {pose_, parameters[0]};
+    double* inner_jacobians[2] = {nullptr, jacobians ? jacobians[0] : nullptr};
+    return inner_.Evaluate(inner_parameters, residuals, jacobians ? inner_jacobians : nullptr);
+  }
+
+ private:
+  ReprojectionCost inner_;
+  double pose_[kPoseSize];
+};
+
+}  // namespace
+
+ceres::CostFunction* CreateFixedPoseReprojectionFactor(const Rigid3d& world_from_body,
+                                                       const Rigid3d& cam_from_body,
+                                                       const Eigen::Vector2d& observed,
+                                                       double focal_px, double sigma_px) {
+  return new FixedPoseReprojectionCost(world_from_body, cam_from_body, observed,
+                                       focal_px / sigma_px);
+}
+
 ceres::CostFunction* CreateAutoDiffReprojectionFactor(const Rigid3d& cam_from_body,
                                                       const Eigen::Vector2d& observed,
                                                       double focal_px, double sigma_px) {

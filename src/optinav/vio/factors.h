@@ -102,6 +102,12 @@ class TimedStatePredictor {
 ceres::CostFunction* CreateReprojectionFactor(const Rigid3d& cam_from_body,
                                               const Eigen::Vector2d& observed, double focal_px,
                                               double sigma_px);
+// The same residual with the body pose held at `world_from_body` (a keyframe that left the
+// window). Block: point.
+ceres::CostFunction* CreateFixedPoseReprojectionFactor(const Rigid3d& world_from_body,
+                                                       const Rigid3d& cam_from_body,
+                                                       const Eigen::Vector2d& observed,
+                                                       double focal_px, double sigma_px);
 // The same residual differentiated by ceres::AutoDiffCostFunction (the reference the analytic
 // Jacobians of CreateReprojectionFactor are tested against).
 ceres::CostFunction* CreateAutoDiffReprojectionFactor(const Rigid3d& cam_from_body,

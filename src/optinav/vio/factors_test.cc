@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <memory>
 #include <random>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -90,6 +91,47 @@ TEST(Reprojection, AnalyticJacobianMatchesAutoDiff) {
   EXPECT_LT(worst_pose, 1e-8);
   EXPECT_LT(worst_point, 1e-8);
   EXPECT_LT(worst_tangent, 1e-8);
+}
+
+// The fixed-pose reprojection (anchored observations) is the reprojection with its pose held:
+// the same residual and point Jacobian, one block.
+TEST(Reprojection, FixedPoseIsTheReprojectionWithThePoseHeld) {
+  const Rigid3d cam_from_body(
+      Eigen::Quaterniond(Eigen::AngleAxisd(-M_PI / 2, Eigen::Vector3d::UnitX())),
+      Eigen::Vector3d(0.05, -0.1, 0.02));
+  const Rigid3d world_from_body(
+      Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d(0.2, -0.3, 1.0).normalized())),
+      Eigen::Vector3d(12.0, -3.0, 1.5));
+  const Eigen::Vector2d observed(0.11, -0.07);
+  const double pose[kPoseSize] = {world_from_body.translation.x(), world_from_body.translation.y(),
+                                  world_from_body.translation.z(), world_from_body.rotation.x(),
+                                  world_from_body.rotation.y(),    world_from_body.rotation.z(),
+                                  world_from_body.rotation.w()};
+  const std::unique_ptr<ceres::CostFunction> full(
+      CreateReprojectionFactor(cam_from_body, observed, 450.0, 1.5));
+  const std::unique_ptr<ceres::CostFunction> fixed(
+      CreateFixedPoseReprojectionFactor(world_from_body, cam_from_body, observed, 450.0, 1.5));
+  ASSERT_EQ(fixed->parameter_block_sizes(), std::vector<int32_t>{kPointSize});
+  int in_front = 0;
+  for (const Eigen::Vector3d& p_in_cam :
+       {Eigen::Vector3d(1.0, -2.0, 8.0), Eigen::Vector3d(-4.0, 0.5, 30.0),
+        Eigen::Vector3d(0.3, 0.2, 0.7), Eigen::Vector3d(1.0, 1.0, -3.0)}) {
+    const Eigen::Vector3d p = world_from_body * (cam_from_body.Inverse() * p_in_cam);
+    const double point[kPointSize] = {p.x(), p.y(), p.z()};
+    const Evaluation a = Evaluate(*full, pose, point);
+    Eigen::Vector2d residual;
+    RowMatrix d_point(2, kPointSize);
+    const double* parameters[1] = {point};
+    double* jacobians[1] = {d_point.data()};
+    ASSERT_TRUE(fixed->Evaluate(parameters, residual.data(), jacobians));
+    EXPECT_EQ(residual, a.residual);
+    EXPECT_EQ(d_point, a.d_point);
+    ASSERT_TRUE(fixed->Evaluate(parameters, residual.data(), nullptr));
+    EXPECT_EQ(residual, a.residual);
+    in_front += p_in_cam.z() > 0 ? 1 : 0;
+    if (p_in_cam.z() > 0) EXPECT_GT(a.d_point.cwiseAbs().maxCoeff(), 0.0);
+  }
+  EXPECT_EQ(in_front, 3);
 }
 
 TEST(GroundVehicle, PenalisesOnlyTheBodyFramesSidewaysAndVerticalVelocity) {

@@ -609,6 +609,7 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(file.frontend.highpass_sigma_px, d.frontend.highpass_sigma_px);
   EXPECT_EQ(file.frontend.local_norm_sigma_px, d.frontend.local_norm_sigma_px);
   EXPECT_EQ(file.frontend.local_norm_floor, d.frontend.local_norm_floor);
+  EXPECT_EQ(file.frontend.local_norm_track_only, d.frontend.local_norm_track_only);
   EXPECT_EQ(file.frontend.median_filter_px, d.frontend.median_filter_px);
   EXPECT_EQ(file.frontend.corner_block_px, d.frontend.corner_block_px);
   EXPECT_EQ(file.backend.window_keyframes, d.backend.window_keyframes);
@@ -625,6 +626,13 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(file.backend.marginalize_tracked_landmarks, d.backend.marginalize_tracked_landmarks);
   EXPECT_EQ(file.stereo_only_marginalize_tracked_landmarks,
             d.stereo_only_marginalize_tracked_landmarks);
+  EXPECT_EQ(file.backend.anchored_observations_per_landmark,
+            d.backend.anchored_observations_per_landmark);
+  EXPECT_EQ(file.stereo_only_anchored_observations_per_landmark,
+            d.stereo_only_anchored_observations_per_landmark);
+  EXPECT_EQ(file.backend.anchored_max_age_s, d.backend.anchored_max_age_s);
+  EXPECT_EQ(file.backend.anchored_max_depth_m, d.backend.anchored_max_depth_m);
+  EXPECT_EQ(file.backend.anchored_stereo, d.backend.anchored_stereo);
   EXPECT_EQ(file.backend.prior_accel_bias_sigma, d.backend.prior_accel_bias_sigma);
   EXPECT_EQ(file.still_max_gyro_std, d.still_max_gyro_std);
   EXPECT_EQ(file.still_max_accel_std, d.still_max_accel_std);
@@ -740,6 +748,10 @@ TEST(VioConfig, BadConfigsNameTheKey) {
       optinav::testing::WriteFile(dir / "j.yaml", "backend:\n  lowcontrast_gyro_walk_scale: 0\n");
   EXPECT_ERROR(LoadVioOptions(held), {.file = held},
                "backend.lowcontrast_gyro_walk_scale must be in (0, 1]");
+  const std::string anchors = optinav::testing::WriteFile(
+      dir / "k.yaml", "backend:\n  stereo_only_anchored_observations_per_landmark: -1\n");
+  EXPECT_ERROR(LoadVioOptions(anchors), {.file = anchors},
+               "backend.stereo_only_anchored_observations_per_landmark must be >= 0 (0: off)");
   const std::string mode = optinav::testing::WriteFile(dir / "c.yaml", "mode: mono\n");
   EXPECT_ERROR(LoadVioOptions(mode), {.file = mode, .line = 1, .field = "mode"},
                "expected stereo-imu or stereo, got 'mono'");
