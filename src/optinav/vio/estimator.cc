@@ -106,7 +106,6 @@ std::map<std::string, Section> OptionSections(VioOptions& o) {
         {"highpass_sigma_px", &f.highpass_sigma_px},
         {"local_norm_sigma_px", &f.local_norm_sigma_px},
         {"local_norm_floor", &f.local_norm_floor},
-        {"local_norm_track_only", &f.local_norm_track_only},
         {"median_filter_px", &f.median_filter_px},
         {"corner_block_px", &f.corner_block_px},
         {"keyframe_max_interval_s", &f.keyframe_max_interval_s},

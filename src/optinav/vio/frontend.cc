@@ -366,14 +366,12 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
     left_eq = HighPassFilter(left_eq, options_.highpass_sigma_px);
     right_eq = HighPassFilter(right_eq, options_.highpass_sigma_px);
   }
-  cv::Mat left_detect = left_eq;
   if (options_.local_norm_sigma_px > 0) {
     left_eq =
         LocalContrastNormalise(left_eq, options_.local_norm_sigma_px, options_.local_norm_floor);
     right_eq =
         LocalContrastNormalise(right_eq, options_.local_norm_sigma_px, options_.local_norm_floor);
   }
-  if (!options_.local_norm_track_only) left_detect = left_eq;
   // Into the reused buffers: the one before the previous left pyramid, the last right one.
   std::vector<cv::Mat> left_pyramid = std::move(spare_pyramid_);
   std::vector<cv::Mat> right_pyramid = std::move(right_pyramid_);
@@ -460,7 +458,7 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
   // 3. New corners where the grid is thin.
   const size_t before = tracks.size();
   const uint64_t first_new_id = next_id_;
-  Detect(left_detect, left_pyramid, &tracks);
+  Detect(left_eq, left_pyramid, &tracks);
   out.stats.detected = static_cast<int>(tracks.size() - before);
   lap("frontend.detect");
 

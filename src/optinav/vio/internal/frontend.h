@@ -89,11 +89,6 @@ struct FrontendOptions {
   // docs/VIO.md, weather).
   double local_norm_sigma_px = 0.0;
   double local_norm_floor = 2.0;  // grey levels added to the local std (flat areas stay flat)
-  // With local_norm_sigma_px: new corners are detected on the image before the normalisation,
-  // which is used for tracking and stereo matching only (normalised, the faint far haze of fog
-  // makes corners whose tracks are noise; tracked, normalisation cancels the bias that haze
-  // thickening across a patch puts into KLT).
-  bool local_norm_track_only = false;
   // Median filter of both images before detection and tracking (odd kernel side; 0 or 1: off).
   // Removes particles of a pixel or two (dust, distant snow and rain) that would otherwise be
   // the strongest corners of a hazy image. Off: on 100 % dust 3 px helped less than CLAHE and
