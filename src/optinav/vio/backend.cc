@@ -816,7 +816,7 @@ void SlidingWindowBackend::RemoveOutliers() {
   // An anchored observation that disagrees is dropped, the landmark kept (its fixed pose cannot
   // move to meet it).
   for (auto& [id, landmark] : landmarks_) {
-    if (!landmark->initialized) continue;
+    if (!landmark->initialized || landmark->anchors.empty()) continue;
     std::erase_if(landmark->anchors, [&](const Landmark::Anchor& a) {
       return ReprojectionErrorPx(a.world_from_body.Inverse(), *landmark, a.observation) > limit;
     });
@@ -857,10 +857,13 @@ void SlidingWindowBackend::MarginalizeOldest() {
         std::erase_if(l->anchors, [&](const Landmark::Anchor& a) {
           return (newest->t_ns - a.t_ns) * 1e-9 > options_.anchored_max_age_s;
         });
-      const double depth =
-          (cam0_from_world * Eigen::Vector3d(l->position[0], l->position[1], l->position[2])).z();
+      const auto near = [&] {
+        const Eigen::Vector3d p(l->position[0], l->position[1], l->position[2]);
+        return options_.anchored_max_depth_m <= 0 ||
+               (cam0_from_world * p).z() < options_.anchored_max_depth_m;
+      };
       if (static_cast<int>(l->anchors.size()) < options_.anchored_observations_per_landmark &&
-          (options_.anchored_max_depth_m <= 0 || depth < options_.anchored_max_depth_m)) {
+          near()) {
         l->anchors.push_back({oldest->t_ns, oldest->WorldFromBody(), obs});
         if (!options_.anchored_stereo) l->anchors.back().observation.right.reset();
       }
