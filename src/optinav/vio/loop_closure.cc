@@ -242,6 +242,8 @@ LoopCloser::Keyframe LoopCloser::Describe(const StateEstimate& state, const cv::
     kf.point_descriptors.push_back(dl.row(static_cast<int>(i)));
   }
   if (timing_) timing_->Add("loop_closure.stereo", timer.ElapsedSeconds());
+  spdlog::debug("vio: loop keyframe {:.3f} s: {} ORB features, {} stereo points", kf.t_ns * 1e-9,
+                kl.size(), kf.points.size());
   return kf;
 }
 
@@ -355,6 +357,8 @@ bool LoopCloser::Match(const Keyframe& candidate, const Keyframe& current, const
       image.emplace_back(current.normalized[j].x(), current.normalized[j].y());
     }
     inlier_idx.clear();
+    spdlog::debug("vio: loop candidate {:.3f} s: {} guided matches", candidate.t_ns * 1e-9,
+                  object.size());
     if (static_cast<int>(object.size()) < options_.min_inliers ||
         !cv::solvePnPRansac(object, image, K, cv::noArray(), rvec, tvec, true, 300, threshold,
                             0.999, inlier_idx, cv::SOLVEPNP_ITERATIVE))
