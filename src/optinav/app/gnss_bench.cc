@@ -175,7 +175,7 @@ GnssBenchSequenceInfo PrepareSequence(GnssBenchSequence sequence, const GnssBenc
     fs::create_directories(fs::path(seq.dir).parent_path());
     lock.emplace(seq.dir + ".lock");
   }
-  const bool complete = fs::is_regular_file(fs::path(seq.dir) / "sim_complete.json");
+  const bool complete = sim::IsCurrentRendering(seq.dir);  // by this renderer version
   if (options.merge && !complete)
     throw Error("the sequence is not complete (merge renders nothing)", {.file = seq.dir});
   if (!(options.reuse && complete)) {

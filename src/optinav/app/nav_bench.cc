@@ -104,7 +104,7 @@ double MaxTiltDeg(const std::string& flight_dir) {
 // Renders a flight unless complete (reuse).
 void RenderFlight(const NavBenchOptions& o, const std::string& waypoints, const Flight& f, bool fog,
                   uint64_t seed) {
-  if (o.reuse && fs::exists(fs::path(f.dir) / "sim_complete.json")) return;
+  if (o.reuse && sim::IsCurrentRendering(f.dir)) return;
   sim::SimulationOptions s;
   s.world.kind = sim::WorldKind::kOrtho;
   s.world.ortho_path = o.flight_ortho;

@@ -85,7 +85,9 @@ TEST_F(VioRunTest, StereoInertialWritesTrajectoriesAndStats) {
   EXPECT_EQ(r.mode, "stereo-imu");
   EXPECT_EQ(r.frame, "world");
   EXPECT_EQ(r.run.frames_total, 201u);
-  EXPECT_EQ(r.run.estimates.size(), 163u);
+  // 193 of 201 frames: the in-motion alignment succeeds 1.5 s in (163 on the renderer before
+  // trilinear texture sampling, 2026-12-05, whose mip seams travelled with the camera).
+  EXPECT_EQ(r.run.estimates.size(), 193u);
   EXPECT_TRUE(r.run.lost.empty());
   EXPECT_EQ(PoseLines(st.out), r.run.estimates.size());
   EXPECT_EQ(PoseLines(st.camera_out), r.run.estimates.size());

@@ -133,6 +133,13 @@ bool CompleteRendering(const Sequence& s, const WeatherBenchOptions& o) {
   if (!fs::is_regular_file(marker)) return false;
   try {
     const nlohmann::json j = nlohmann::json::parse(io::ReadFileToString(marker.string()));
+    if (const int version = j.value("renderer", 1); version != sim::kRendererVersion) {
+      spdlog::info(
+          "bench weather: {} is from renderer version {} (this binary's: {}): rendering "
+          "it again",
+          s.dir, version, sim::kRendererVersion);
+      return false;
+    }
     return j.at("world") == WeatherBenchWorldName(s.world) && j.at("route") == "car" &&
            j.at("weather") == s.condition.ToString() && j.at("seed") == s.seed &&
            j.at("format") == "euroc" && std::abs(j.at("scale").get<double>() - o.scale) < 1e-9;

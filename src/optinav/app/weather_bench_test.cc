@@ -10,6 +10,7 @@
 
 #include "optinav/io/text_parse.h"
 #include "optinav/report/html_report.h"
+#include "optinav/sim/simulation.h"
 #include "optinav/util/testing.h"
 
 namespace fs = std::filesystem;
@@ -201,6 +202,24 @@ TEST(WeatherBench, ShortUrbanRouteClearAndDustThenReuse) {
   }
   lines.clear();
   EXPECT_TRUE(RunWeatherBench(o, say).runs[0].reused);  // the same text: kept
+
+  // A sequence from an older renderer (its marker without "renderer", as before version 2) is
+  // rendered and run again; the other is kept.
+  const fs::path clear_marker = dir / "sequences/seed1_6s/urban_default/sim_complete.json";
+  nlohmann::json marker = nlohmann::json::parse(testing::ReadFile(clear_marker));
+  EXPECT_EQ(marker.at("renderer"), sim::kRendererVersion);
+  EXPECT_TRUE(sim::IsCurrentRendering(clear_marker.parent_path().string()));
+  marker.erase("renderer");
+  io::WriteFileAtomically(clear_marker.string(), marker.dump(2));
+  EXPECT_FALSE(sim::IsCurrentRendering(clear_marker.parent_path().string()));
+  lines.clear();
+  const WeatherBenchResult rerendered = RunWeatherBench(o, say);
+  EXPECT_TRUE(Said(lines, "rendering urban_default"));
+  EXPECT_FALSE(Said(lines, "rendering urban_dust_100"));
+  ASSERT_EQ(rerendered.runs.size(), 2u);
+  EXPECT_FALSE(rerendered.runs[0].reused);
+  EXPECT_TRUE(rerendered.runs[0].ok);
+  EXPECT_TRUE(rerendered.runs[1].reused);
   fs::remove_all(dir);
 }
 

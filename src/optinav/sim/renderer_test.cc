@@ -9,7 +9,9 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
 
+#include "optinav/sim/internal/texture.h"
 #include "optinav/sim/rig.h"
+#include "optinav/util/statistics.h"
 
 namespace optinav::sim {
 namespace {
@@ -197,10 +199,7 @@ TEST(Renderer, StereoDisparityHasNoBias) {
       if (q2) bm.push_back(sub - (x - q2->x()));
     }
   }
-  auto median = [](std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    return v.empty() ? 0.0 : v[v.size() / 2];
-  };
+  auto median = [](const std::vector<double>& v) { return v.empty() ? 0.0 : Median(v); };
   std::printf(
       "disparity error (measured - z-buffer), median: block matching %.3f px (%zu corners), KLT "
       "%.3f px (%zu); max 0.1 px\n",
@@ -209,6 +208,33 @@ TEST(Renderer, StereoDisparityHasNoBias) {
   ASSERT_GT(klt.size(), 100u);
   EXPECT_LT(std::abs(median(bm)), 0.1);
   EXPECT_LT(std::abs(median(klt)), 0.1);
+}
+
+// Sampling is continuous in the mip level: crossing any lod by a hair changes no texel by more
+// than a couple of grey levels (a nearest-level sampler jumps by up to 42 on the sidewalk between
+// lod 1.499 and 1.501: a seam at a fixed distance from the camera, travelling with it, that makes
+// corners no real camera sees). At an integer lod the sample is that level's bilinear sample.
+TEST(Texture, SamplingIsContinuousInTheMipLevel) {
+  const Texture tex(MakeSurfaceImage(SurfaceKind::kSidewalk, 3));
+  ASSERT_GE(tex.levels(), 5);
+  int worst = 0;
+  for (float lod = 0.25f; lod < tex.levels() - 1.5f; lod += 0.25f) {
+    for (int i = 0; i < 400; ++i) {
+      const double u = 0.013 + 0.0371 * i, v = 0.29 + 0.0173 * i;
+      uint8_t a[3], b[3];
+      tex.Sample(u, v, lod - 0.001f, a);
+      tex.Sample(u, v, lod + 0.001f, b);
+      for (int c = 0; c < 3; ++c) worst = std::max(worst, std::abs(int(a[c]) - int(b[c])));
+    }
+  }
+  std::printf("largest change across lod +- 0.001: %d grey levels; max 2\n", worst);
+  EXPECT_LE(worst, 2);
+  // At lod 2 exactly: level 2's texel centre (texel (5, 7) is at u = (5 + 0.5) / n).
+  const int n = tex.level(2).cols;
+  uint8_t s[3];
+  tex.Sample((5 + 0.5) / n, (7 + 0.5) / n, 2.0f, s);
+  const cv::Vec3b texel = tex.level(2).at<cv::Vec3b>(7, 5);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(s[c], texel[c], 1) << c;
 }
 
 TEST(Renderer, OutputDoesNotDependOnTheThreadCount) {

@@ -204,6 +204,17 @@ std::string SimulationOptions::Check() const {
   return "";
 }
 
+bool IsCurrentRendering(const std::string& dir) {
+  const fs::path marker = fs::path(dir) / kMarker;
+  if (!fs::is_regular_file(marker)) return false;
+  try {
+    const nlohmann::json j = nlohmann::json::parse(io::ReadFileToString(marker.string()));
+    return j.value("renderer", 1) == kRendererVersion;
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
 SimulationSummary RunSimulation(const SimulationOptions& options,
                                 const std::function<void(size_t, size_t)>& progress) {
   if (const std::string m = options.Check(); !m.empty()) throw Error(m);
@@ -439,6 +450,7 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
   // The completion marker: parameters and counts, nothing run-dependent (byte-identical reruns).
   nlohmann::ordered_json j;
   j["generator"] = "optinav sim";
+  j["renderer"] = kRendererVersion;
   j["world"] = WorldName(world.kind);
   if (!options.world.ortho_path.empty()) j["ortho"] = options.world.ortho_path;
   j["route"] = options.route;

@@ -61,6 +61,16 @@ struct SimulationSummary {
   int width = 0, height = 0;  // image size
 };
 
+// The renderer's version, written to the completion marker (sim_complete.json "renderer"):
+// rendering code changes that change the images bump it, so that the benchmarks' --reuse renders
+// older sequences again. 1 (markers without the key): nearest-mip-level texture sampling;
+// 2 (2026-12-05): trilinear sampling.
+inline constexpr int kRendererVersion = 2;
+
+// Whether `dir` holds a finished rendering (its sim_complete.json) by this renderer version.
+// False for a missing or unreadable marker.
+bool IsCurrentRendering(const std::string& dir);
+
 // Runs the simulation. `progress(done, total)` is called after each stereo frame. Throws Error
 // for bad input (unknown route file, unusable orthophoto, output folder not empty, write
 // failures), leaving no completion marker.

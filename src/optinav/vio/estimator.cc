@@ -5,6 +5,7 @@
 #include <cstring>
 #include <map>
 #include <type_traits>
+#include <unordered_map>
 #include <variant>
 
 #include <fmt/format.h>
@@ -12,6 +13,7 @@
 #include "optinav/util/config.h"
 #include "optinav/util/error.h"
 #include "optinav/util/logging.h"
+#include "optinav/util/statistics.h"
 #include "optinav/vio/internal/vi_alignment.h"
 
 namespace optinav::vio {
@@ -40,6 +42,8 @@ std::string VioOptions::Check() const {
   if (!(init_window_s > 0)) return "init_window_s must be > 0";
   if (!(still_max_gyro_std > 0) || !(still_max_accel_std > 0))
     return "still_max_gyro_std and still_max_accel_std must be > 0";
+  if (!std::isfinite(still_max_image_motion_px))
+    return "still_max_image_motion_px must be finite (<= 0: the IMU alone decides)";
   if (!(static_gyro_bias_min_sigma > 0)) return "static_gyro_bias_min_sigma must be > 0";
   if (!(static_gyro_bias_max_noise_ratio > 0))
     return "static_gyro_bias_max_noise_ratio must be > 0";
@@ -189,6 +193,7 @@ std::map<std::string, Section> OptionSections(VioOptions& o) {
        {{"init_window_s", &o.init_window_s},
         {"still_max_gyro_std", &o.still_max_gyro_std},
         {"still_max_accel_std", &o.still_max_accel_std},
+        {"still_max_image_motion_px", &o.still_max_image_motion_px},
         {"static_gyro_bias_standard_errors", &o.static_gyro_bias_standard_errors},
         {"static_gyro_bias_min_sigma", &o.static_gyro_bias_min_sigma},
         {"static_gyro_bias_max_noise_ratio", &o.static_gyro_bias_max_noise_ratio},
@@ -437,6 +442,11 @@ bool VioEstimator::TryInitialize(const FramePacket& packet) {
   const FrontendOutput& features = packet.features;
   int stereo = 0;
   for (const StereoObservation& o : features.observations) stereo += o.right ? 1 : 0;
+  if (options_.mode == VioMode::kStereoImu) {
+    still_frames_.emplace_back(t_ns, features.observations);
+    const int64_t t0 = t_ns - static_cast<int64_t>(options_.init_window_s * 1e9);
+    while (still_frames_.size() > 1 && still_frames_[1].first <= t0) still_frames_.pop_front();
+  }
   // (A running in-motion alignment window tracks on through frames with fewer.)
   if (stereo < options_.min_init_stereo_features && !init_odometry_) return false;
   StateEstimate state;
@@ -444,6 +454,8 @@ bool VioEstimator::TryInitialize(const FramePacket& packet) {
   double tilt_sigma = -1, velocity_sigma = -1, accel_bias_sigma = -1, gyro_bias_sigma = -1;
   if (options_.mode == VioMode::kStereoImu) {
     const int64_t t0 = t_ns - static_cast<int64_t>(options_.init_window_s * 1e9);
+    const std::optional<double> image_motion_px =
+        ImageMotionSinceWindowStartPx(t0, t_ns, features.observations);
     std::vector<const TimedImuSample*> window;
     for (const TimedImuSample& s : backend_imu_)
       if (s.t_ns >= t0 && s.t_ns <= t_ns) window.push_back(&s);
@@ -472,7 +484,12 @@ bool VioEstimator::TryInitialize(const FramePacket& packet) {
     for (size_t k = 0; k < block_g.size(); ++k)
       vg += (block_g[k] - mg).squaredNorm(), va += (block_a[k] - ma).squaredNorm();
     const double std_g = std::sqrt(vg / block_g.size()), std_a = std::sqrt(va / block_a.size());
-    const bool still = std_g < options_.still_max_gyro_std && std_a < options_.still_max_accel_std;
+    // Without tracks over the whole window (a recording's or a re-start's first frame) the IMU
+    // alone decides.
+    const bool still = std_g < options_.still_max_gyro_std &&
+                       std_a < options_.still_max_accel_std &&
+                       (options_.still_max_image_motion_px <= 0 || !image_motion_px ||
+                        *image_motion_px <= options_.still_max_image_motion_px);
     // Attitude: the specific force points up in the world.
     Eigen::Quaterniond world_from_body =
         Eigen::Quaterniond::FromTwoVectors(ma.normalized(), Eigen::Vector3d::UnitZ());
@@ -513,8 +530,9 @@ bool VioEstimator::TryInitialize(const FramePacket& packet) {
     if (gnss_) gnss_->OnTrackStarted(last_init_kind_ == "in-motion-priors");
     spdlog::info(
         "vio: {} initialisation at {:.3f} s (gyro std {:.4f} rad/s, accel std {:.3f} "
-        "m/s^2, {} stereo features)",
-        last_init_kind_, t_ns * 1e-9, std_g, std_a, stereo);
+        "m/s^2, image motion {} px, {} stereo features)",
+        last_init_kind_, t_ns * 1e-9, std_g, std_a,
+        image_motion_px ? fmt::format("{:.2f}", *image_motion_px) : "unknown", stereo);
   } else {
     if (last_good_) state.world_from_body = last_good_->world_from_body;
     last_init_kind_ = "stereo";
@@ -526,6 +544,7 @@ bool VioEstimator::TryInitialize(const FramePacket& packet) {
                         gyro_bias_sigma);
   }
   ++initializations_;
+  still_frames_.clear();
   if (lost_since_ns_) {
     lost_.push_back({*lost_since_ns_, t_ns, *lost_reason_});
     spdlog::warn("vio: lost from {:.3f} s to {:.3f} s ({})", *lost_since_ns_ * 1e-9, t_ns * 1e-9,
@@ -533,6 +552,21 @@ bool VioEstimator::TryInitialize(const FramePacket& packet) {
     lost_since_ns_.reset();
   }
   return true;
+}
+
+std::optional<double> VioEstimator::ImageMotionSinceWindowStartPx(
+    int64_t t0_ns, int64_t t_ns, const std::vector<StereoObservation>& now) const {
+  // The first frame must be at (or before) the window's start, as the IMU window's first sample.
+  if (still_frames_.empty() || still_frames_.front().first > t0_ns + (t_ns - t0_ns) / 5)
+    return std::nullopt;
+  std::unordered_map<uint64_t, Eigen::Vector2d> then;
+  for (const StereoObservation& o : still_frames_.front().second) then.emplace(o.track_id, o.left);
+  std::vector<double> moved;
+  for (const StereoObservation& o : now)
+    if (const auto it = then.find(o.track_id); it != then.end())
+      moved.push_back((o.left - it->second).norm() * rig_.left.fx);
+  if (moved.size() < 10) return std::nullopt;
+  return Median(std::move(moved));
 }
 
 void VioEstimator::ResetMotionInit() {

@@ -109,6 +109,13 @@ struct VioOptions {
   // Stillness: standard deviation of the 0.1 s block means over the window.
   double still_max_gyro_std = 0.02;   // rad/s
   double still_max_accel_std = 0.25;  // m/s^2
+  // ... and, by vision, the left camera's tracks moved at most this much (median over the
+  // tracks seen at the window's start and now, px; <= 0: the IMU alone decides, as it does
+  // when no tracks span the window: a recording's or a re-start's first frame). A vehicle
+  // cruising at constant velocity is still to the IMU: a drone flying straight at 5 m/s at 10 m
+  // was taken as parked (velocity 0) and its estimate ran 225 m off over 205 m (bench gnss's
+  // outdoor flight at 226x144); a parked car's tracks move 0.1 px.
+  double still_max_image_motion_px = 1.0;
   // Prior on the gyro bias after a static start: the still window's mean rate measures the bias
   // to the standard error of its 0.1 s block means; the prior is this many standard errors
   // (at least static_gyro_bias_min_sigma, at most backend.prior_gyro_bias_sigma; <= 0: the
@@ -298,6 +305,12 @@ class VioEstimator {
   };
   std::unique_ptr<SlidingWindowBackend> init_odometry_;
   std::vector<MotionInitFrame> init_frames_;
+  // Stillness by vision: the observations of the frames TryInitialize saw over the IMU window
+  // (the first one at or before its start), and their tracks' median motion in px since then
+  // (nullopt without a frame at the window's start or with fewer than 10 tracks in common).
+  std::deque<std::pair<int64_t, std::vector<StereoObservation>>> still_frames_;
+  std::optional<double> ImageMotionSinceWindowStartPx(
+      int64_t t0_ns, int64_t t_ns, const std::vector<StereoObservation>& now) const;
   std::vector<FrameEstimate> delayed_;
 };
 

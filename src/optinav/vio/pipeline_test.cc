@@ -635,6 +635,7 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(file.backend.prior_accel_bias_sigma, d.backend.prior_accel_bias_sigma);
   EXPECT_EQ(file.still_max_gyro_std, d.still_max_gyro_std);
   EXPECT_EQ(file.still_max_accel_std, d.still_max_accel_std);
+  EXPECT_EQ(file.still_max_image_motion_px, d.still_max_image_motion_px);
   EXPECT_EQ(file.static_gyro_bias_standard_errors, d.static_gyro_bias_standard_errors);
   EXPECT_EQ(file.static_gyro_bias_min_sigma, d.static_gyro_bias_min_sigma);
   EXPECT_EQ(file.static_gyro_bias_max_noise_ratio, d.static_gyro_bias_max_noise_ratio);

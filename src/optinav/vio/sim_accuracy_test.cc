@@ -15,6 +15,7 @@
 #include "optinav/sim/trajectory.h"
 #include "optinav/sim/weather.h"
 #include "optinav/sim/world.h"
+#include "optinav/util/statistics.h"
 #include "optinav/util/testing.h"
 #include "optinav/vio/internal/frontend.h"
 #include "optinav/vio/pipeline.h"
@@ -81,14 +82,14 @@ Accuracy Evaluate(const std::string& dir, const VioRunResult& r, bool se3 = true
 
 std::string Simulate(const std::string& name, const std::string& route, double duration_s,
                      double speed, double altitude, uint64_t seed,
-                     const std::string& weather = "none") {
+                     const std::string& weather = "none", double scale = 0.5) {
   sim::SimulationOptions o;
   o.route = route;
   o.duration_s = duration_s;
   o.speed_m_s = speed;
   o.altitude_m = altitude;
   o.seed = seed;
-  o.scale = 0.5;
+  o.scale = scale;
   o.weather = sim::ParseWeather(weather);
   o.out_dir = (optinav::testing::MakeTempDir("vio_sim_" + name) / "seq").string();
   sim::RunSimulation(o);
@@ -126,8 +127,10 @@ TEST(SimAccuracy, FrontendStereoDisparityHasNoBias) {
         frontend.Process(static_cast<int64_t>(t * 1e9), grey_left, grey_right, std::nullopt, true);
     for (const StereoObservation& obs : out.observations) {
       if (!obs.right) continue;
-      const Eigen::Vector2d px(rig.left.fx * obs.left.x() + rig.left.cx,
-                               rig.left.fy * obs.left.y() + rig.left.cy);
+      const auto left_px = rig.left.Project(obs.left.homogeneous());
+      const auto right_px = rig.right.Project(obs.right->homogeneous());
+      if (!left_px || !right_px) continue;
+      const Eigen::Vector2d px = *left_px;
       const int x0 = static_cast<int>(std::floor(px.x()));
       const int y0 = static_cast<int>(std::floor(px.y()));
       if (x0 < 3 || y0 < 3 || x0 >= depth.cols - 4 || y0 >= depth.rows - 4) continue;
@@ -142,22 +145,18 @@ TEST(SimAccuracy, FrontendStereoDisparityHasNoBias) {
       const auto truth = rig.right.Project(world_from_right.Inverse() * p_world);
       if (!truth) continue;
       // Measured minus true disparity.
-      const double error = truth->x() - (rig.right.fx * obs.right->x() + rig.right.cx);
+      const double error = truth->x() - right_px->x();
       (d < 15 ? near : far).push_back(error);
     }
   }
-  auto median = [](std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    return v[v.size() / 2];
-  };
   ASSERT_GT(near.size(), 50u);
   ASSERT_GT(far.size(), 20u);
   std::printf(
       "frontend disparity error (measured - z-buffer), median: near (< 15 m) %.3f px (%zu), far "
       "%.3f px (%zu); max 0.2 px\n",
-      median(near), near.size(), median(far), far.size());
-  EXPECT_LT(std::abs(median(near)), 0.2);
-  EXPECT_LT(std::abs(median(far)), 0.2);
+      Median(near), near.size(), Median(far), far.size());
+  EXPECT_LT(std::abs(Median(near)), 0.2);
+  EXPECT_LT(std::abs(Median(far)), 0.2);
 }
 
 TEST(SimAccuracy, DroneStereoInertial) {
@@ -187,6 +186,31 @@ TEST(SimAccuracy, DroneStereoInertial) {
       b.init.c_str(), b.ape_rmse_m, 100 * b.ape_rmse_m / b.path_m);
   EXPECT_EQ(b.init, "in-motion-priors");
   EXPECT_LT(100 * b.ape_rmse_m / b.path_m, 0.5);
+}
+
+// A drone cruising at constant velocity is still to the IMU. On `bench gnss`'s outdoor flight
+// (seed 7, 10 m, 5 m/s, 226x144) the in-motion alignment fails on the small images until 12 s,
+// and at 6.8 s the IMU window was still (gyro 0.018 rad/s, accel 0.12 m/s^2 block spread): the
+// start took the drone as parked (velocity 0) and its estimate ran 225 m off over 205 m. The
+// camera's tracks moved 22 px over that window (a parked car's: 0.1 px); with the check on
+// them the start waits for the alignment (measured 2026-12-05: mean error 4.70 m, 10.2 m at the
+// end).
+TEST(SimAccuracy, DroneCruisingAtConstantVelocityIsNotTakenAsParked) {
+  const std::string dir = Simulate("cruise", "drone", 40.0, 5.0, 10.0, 7, "none", 0.3);
+  VioRunOptions options;
+  const Accuracy a = Evaluate(dir, RunVioOnEuroc(dir, options), /*se3=*/false);
+  VioRunOptions imu_only = options;
+  imu_only.vio.still_max_image_motion_px = 0;
+  const Accuracy b = Evaluate(dir, RunVioOnEuroc(dir, imu_only), /*se3=*/false);
+  std::printf(
+      "simulated drone, urban, 10 m, 5 m/s, 226x144, %.1f m: %s start, mean error (first poses "
+      "aligned) %.2f m (< 10), end %.2f m; with the IMU alone deciding stillness: %s start, "
+      "%.2f m\n",
+      a.path_m, a.init.c_str(), a.ape_mean_m, a.end_m, b.init.c_str(), b.ape_mean_m);
+  EXPECT_EQ(b.init, "static") << "the case this test is about: an IMU-still cruise";
+  EXPECT_EQ(a.init, "in-motion-aligned");
+  EXPECT_EQ(a.lost, 0u);
+  EXPECT_LT(a.ape_mean_m, 10.0);
 }
 
 TEST(SimAccuracy, CarStereoOnly) {
@@ -253,7 +277,11 @@ TEST(SimAccuracy, CarStereoInertialInFogKeepsTheStaticGyroBias) {
   // drifting 0.08 deg/s; 9.9 m mean error over the whole route, 2.5 m with the measured prior;
   // docs/VIO.md, weather). The prior is one standard error of the still window's mean rate since
   // 2026-12-01: this segment went 0.456 -> 0.263 m mean, 0.695 -> 0.528 m at the end, from three
-  // standard errors (measured 2026-11-27; the mean bound below is under that).
+  // standard errors (measured 2026-11-27), and the loose prior gave 1.232 m, 3.104 m at the end.
+  // Re-measured on the renderer with trilinear texture sampling (2026-12-05): 0.415 m, 0.718 m
+  // at the end with the measured prior; 0.739 m, 1.293 m with the loose one. The old renderer's
+  // mip seams travelled with the camera, and in fog, where the near field is all there is to
+  // track, those false corners made much of the pull on the bias (docs/VIO.md, 2026-12-05).
   const std::string dir = Simulate("fog", "car", 25.0, 5.0, 20.0, 1, "fog:100");
   auto run = [&](double standard_errors) {
     VioRunOptions options;
@@ -265,14 +293,15 @@ TEST(SimAccuracy, CarStereoInertialInFogKeepsTheStaticGyroBias) {
   const Accuracy b = run(0);  // the backend's prior (before 2026-11-27)
   std::printf(
       "simulated car, urban, fog 100 %%, stereo-inertial, 400x300, %.1f m (%s start): mean APE "
-      "(first poses aligned) %.3f m, end %.3f m with the measured gyro-bias prior (< 0.4 m, < "
-      "0.9 m); %.3f m, end %.3f m with the backend's 0.01 rad/s\n",
+      "(first poses aligned) %.3f m, end %.3f m with the measured gyro-bias prior (< 0.5 m, < "
+      "0.9 m); %.3f m, end %.3f m with the backend's 0.01 rad/s (end > 1.5x)\n",
       a.path_m, a.init.c_str(), a.ape_mean_m, a.end_m, b.ape_mean_m, b.end_m);
   EXPECT_EQ(a.init, "static");
   EXPECT_EQ(a.lost, 0u);
-  EXPECT_LT(a.ape_mean_m, 0.4);
+  EXPECT_LT(a.ape_mean_m, 0.5);
   EXPECT_LT(a.end_m, 0.9);
-  EXPECT_GT(b.end_m, 2 * a.end_m) << "the loose prior is expected to drift here";
+  EXPECT_GT(b.ape_mean_m, 1.5 * a.ape_mean_m) << "the loose prior is expected to drift here";
+  EXPECT_GT(b.end_m, 1.5 * a.end_m) << "the loose prior is expected to drift here";
 }
 
 TEST(SimAccuracy, CarStereoInertialInDustHoldsTheGyroBias) {

@@ -23,12 +23,33 @@ class Texture {
   int size() const { return size_; }
   int levels() const { return static_cast<int>(levels_.size()); }
   const cv::Mat& level(int k) const { return levels_[k]; }
-  // Bilinear sample at (u, v) from the level nearest `lod` (log2 of texels per pixel).
-  // Inline: the renderer calls it for every textured pixel.
+  // Trilinear sample at (u, v): bilinear at the two levels around `lod` (log2 of texels per
+  // pixel), blended by its fraction, so the sharpness changes continuously with distance (a
+  // nearest-level sampler jumps at lod k + 0.5, and that seam travels with the camera and makes
+  // corners no real camera sees). Inline: the renderer calls it for every textured pixel.
   void Sample(double u, double v, float lod, uint8_t bgr[3]) const {
-    int k = lod <= 0.5f ? 0 : static_cast<int>(lod + 0.5f);
-    if (k >= static_cast<int>(views_.size())) k = static_cast<int>(views_.size()) - 1;
-    const LevelView& lv = views_[k];
+    const int last = static_cast<int>(views_.size()) - 1;
+    if (!(lod > 0.0f)) return Bilinear(views_[0], u, v, 256, bgr, nullptr);
+    const int k = static_cast<int>(lod);
+    if (k >= last) return Bilinear(views_[last], u, v, 256, bgr, nullptr);
+    const int w1 = static_cast<int>((lod - static_cast<float>(k)) * 256.0f);  // weight of k + 1
+    uint32_t acc[3] = {0, 0, 0};
+    Bilinear(views_[k], u, v, 256 - w1, nullptr, acc);
+    Bilinear(views_[k + 1], u, v, w1, nullptr, acc);
+    for (int c = 0; c < 3; ++c) bgr[c] = static_cast<uint8_t>((acc[c] + (1 << 23)) >> 24);
+  }
+
+ private:
+  struct LevelView {
+    const uint8_t* data;
+    size_t step;
+    int n;
+  };
+  // Bilinear sample of one level, in fixed point: with `out`, the rounded colour (weight 256);
+  // else `weight` / 256 of it added to `acc` in 8.24 fixed point (unsigned: two levels' worth
+  // plus the rounding term reach 255 * 2^24 + 2^23, over a signed int's range).
+  static void Bilinear(const LevelView& lv, double u, double v, int weight, uint8_t* out,
+                       uint32_t* acc) {
     // Wrap first (in double: u may be hundreds of repeats), then work in float.
     const float x = static_cast<float>((u - std::floor(u)) * lv.n) - 0.5f;
     const float y = static_cast<float>((v - std::floor(v)) * lv.n) - 0.5f;
@@ -42,16 +63,14 @@ class Texture {
     for (int c = 0; c < 3; ++c) {
       const int top = p00[c] * (256 - wx) + p01[c] * wx;
       const int bot = p10[c] * (256 - wx) + p11[c] * wx;
-      bgr[c] = static_cast<uint8_t>((top * (256 - wy) + bot * wy + (1 << 15)) >> 16);
+      const uint32_t value = static_cast<uint32_t>(top * (256 - wy) + bot * wy);  // 8.16
+      if (out)
+        out[c] = static_cast<uint8_t>((value + (1 << 15)) >> 16);
+      else
+        acc[c] += value * static_cast<uint32_t>(weight);  // sum <= 255 * 2^24 (+ 2^23) < 2^32
     }
   }
 
- private:
-  struct LevelView {
-    const uint8_t* data;
-    size_t step;
-    int n;
-  };
   std::vector<cv::Mat> levels_;
   std::vector<LevelView> views_;  // raw access to levels_ (same order)
   int size_ = 0;
