@@ -66,9 +66,13 @@ vio::VioRunOptions MakeRunOptions(const VioRunSettings& st,
   // After the mode is settled: an AirSim recording runs stereo-only.
   *vehicle = ResolveVehicleModel(st.vehicle, st.dataset);
   if (options.vio.mode == vio::VioMode::kStereo && *vehicle == VehicleModel::kGround) {
-    // Stereo-only states have no velocity to constrain.
+    // Stereo-only states have no velocity to constrain; the constraint between consecutive
+    // states is opt-in (it turned the stereo odometry's translation-direction bias into a yaw
+    // drift on the car route, docs/VIO.md, weather, 2026-12-05 evening).
     if (st.vehicle == VehicleModel::kGround)
-      spdlog::warn("--vehicle ground has no effect in stereo mode (no velocity states)");
+      spdlog::warn(
+          "--vehicle ground sets no default in stereo mode; backend.ground_vehicle_*_sigma_m_s "
+          "in the config constrain the motion between consecutive states");
     *vehicle = VehicleModel::kFree;
   }
   if (*vehicle == VehicleModel::kGround) ApplyGroundVehicleDefaults(&options.vio.backend);

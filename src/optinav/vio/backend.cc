@@ -93,6 +93,10 @@ std::string BackendOptions::Check() const {
   if (anchored_observations_per_landmark > 0 && marginalize_tracked_landmarks)
     return "anchored_observations_per_landmark and marginalize_tracked_landmarks exclude each "
            "other (both keep what the oldest keyframe saw of a tracked landmark)";
+  if (!(ground_vehicle_boresight_sigma_rad >= 0) ||
+      !(ground_vehicle_boresight_walk_rad_per_sqrt_s >= 0))
+    return "ground_vehicle_boresight_sigma_rad and ground_vehicle_boresight_walk_rad_per_sqrt_s "
+           "must be >= 0";
   if (!(ground_vehicle_lateral_sigma_m_s >= 0) || !(ground_vehicle_vertical_sigma_m_s >= 0))
     return "ground_vehicle_lateral_sigma_m_s and ground_vehicle_vertical_sigma_m_s must be >= 0 "
            "(0: off)";
@@ -131,6 +135,7 @@ void SlidingWindowBackend::Reset() {
   alignment_enabled_ = false;
   alignment_yaw_held_ = false;
   globals_.clear();
+  boresight_ = -1;
   prior_ = LinearPrior();
   rejected_tracks_.clear();
   stats_ = BackendStats();
@@ -151,6 +156,12 @@ void SlidingWindowBackend::Initialize(const StateEstimate& estimate,
                   velocity_sigma_m_s > 0 ? velocity_sigma_m_s : options_.prior_velocity_sigma_m_s,
                   accel_bias_sigma > 0 ? accel_bias_sigma : options_.prior_accel_bias_sigma,
                   gyro_bias_sigma > 0 ? gyro_bias_sigma : options_.prior_gyro_bias_sigma);
+  if (!options_.use_imu && ground_vehicle() && options_.ground_vehicle_boresight_sigma_rad > 0) {
+    boresight_ = AddGlobalBlock(
+        Eigen::Vector2d::Zero(),
+        Eigen::Vector2d::Constant(options_.ground_vehicle_boresight_sigma_rad),
+        Eigen::Vector2d::Constant(options_.ground_vehicle_boresight_walk_rad_per_sqrt_s));
+  }
   AddObservations(states_.back().get(), observations);
   TriangulateNew(states_.back().get());
 }
@@ -316,6 +327,9 @@ std::vector<std::unique_ptr<ResidualSpec>> SlidingWindowBackend::BuildStateResid
   }
   for (const auto& state : states_)
     if (auto spec = GroundVehicleSpec(*state)) specs.push_back(std::move(spec));
+  for (size_t k = 1; k < states_.size(); ++k)
+    if (auto spec = GroundVehiclePairSpec(*states_[k - 1], *states_[k]))
+      specs.push_back(std::move(spec));
   if (auto spec = PriorSpec()) specs.push_back(std::move(spec));
   for (const auto& factor : timed_factors_)
     if (auto spec = TimedFactorSpec(*factor, nullptr)) specs.push_back(std::move(spec));
@@ -323,11 +337,27 @@ std::vector<std::unique_ptr<ResidualSpec>> SlidingWindowBackend::BuildStateResid
 }
 
 std::unique_ptr<ResidualSpec> SlidingWindowBackend::GroundVehicleSpec(const State& state) const {
-  if (!ground_vehicle()) return nullptr;
+  if (!ground_vehicle() || !options_.use_imu) return nullptr;
   auto spec = std::make_unique<ResidualSpec>();
   spec->cost.reset(CreateGroundVehicleFactor(options_.ground_vehicle_lateral_sigma_m_s,
                                              options_.ground_vehicle_vertical_sigma_m_s));
   spec->blocks = {const_cast<double*>(state.pose), const_cast<double*>(state.speed_bias)};
+  return spec;
+}
+
+std::unique_ptr<ResidualSpec> SlidingWindowBackend::GroundVehiclePairSpec(const State& a,
+                                                                          const State& b) const {
+  if (!ground_vehicle() || options_.use_imu || b.t_ns <= a.t_ns) return nullptr;
+  auto spec = std::make_unique<ResidualSpec>();
+  const double dt = (b.t_ns - a.t_ns) * 1e-9, lateral = options_.ground_vehicle_lateral_sigma_m_s,
+               vertical = options_.ground_vehicle_vertical_sigma_m_s;
+  spec->blocks = {const_cast<double*>(a.pose), const_cast<double*>(b.pose)};
+  if (boresight_ >= 0) {
+    spec->cost.reset(CreateGroundVehiclePairFactorWithBoresight(dt, lateral, vertical));
+    spec->blocks.push_back(globals_[boresight_]->values.data());
+  } else {
+    spec->cost.reset(CreateGroundVehiclePairFactor(dt, lateral, vertical));
+  }
   return spec;
 }
 
@@ -617,6 +647,13 @@ void SlidingWindowBackend::OptimizeNewest() {
     if (auto spec = GroundVehicleSpec(newest))
       problem.AddResidualBlock(spec->cost.release(), nullptr, spec->blocks);
   }
+  if (auto spec = GroundVehiclePairSpec(previous, newest)) {
+    if (spec->blocks.size() > 2) {  // the boresight, held
+      problem.AddParameterBlock(spec->blocks[2], 2);
+      problem.SetParameterBlockConstant(spec->blocks[2]);
+    }
+    problem.AddResidualBlock(spec->cost.release(), nullptr, spec->blocks);
+  }
   int num_observations = 0;
   for (auto& spec : BuildResiduals([&](const State* s) { return s == &newest; },
                                    [](const Landmark*) { return true; }, /*with_anchors=*/false)) {
@@ -700,6 +737,9 @@ void SlidingWindowBackend::Optimize() {
       if (auto spec = GroundVehicleSpec(*state))
         problem.AddResidualBlock(spec->cost.release(), nullptr, packed_blocks(spec->blocks));
   }
+  for (size_t k = 1; k < states_.size(); ++k)
+    if (auto spec = GroundVehiclePairSpec(*states_[k - 1], *states_[k]))
+      problem.AddResidualBlock(spec->cost.release(), nullptr, packed_blocks(spec->blocks));
   int num_observations = 0;
   for (auto& spec : reprojection) {
     problem.AddResidualBlock(spec->cost.release(), const_cast<ceres::LossFunction*>(spec->loss),
@@ -891,6 +931,7 @@ void SlidingWindowBackend::MarginalizeOldest() {
     owned.push_back(std::move(spec));
   }
   if (auto spec = GroundVehicleSpec(*oldest)) owned.push_back(std::move(spec));
+  if (auto spec = GroundVehiclePairSpec(*oldest, *states_[1])) owned.push_back(std::move(spec));
   if (auto spec = PriorSpec()) owned.push_back(std::move(spec));
   const int64_t next_t = states_[1]->t_ns;
   for (const auto& factor : timed_factors_) {

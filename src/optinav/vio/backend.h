@@ -96,9 +96,18 @@ struct BackendOptions {
   // unconstrained; both 0: off, the default). For a body frame with x forward and its origin near
   // the rear axle. On a car the IMU cannot tell a slow vertical velocity error from none (no
   // acceleration), and vision with near points only (fog) let the height drift (docs/VIO.md,
-  // weather, 2026-12-02).
+  // weather, 2026-12-02). Without IMU (no velocity states) the same sigmas constrain the mean
+  // velocity between consecutive states, in the body frame at the arc's middle
+  // (CreateGroundVehiclePairFactor): opt-in, off in every default (docs/VIO.md, weather,
+  // 2026-12-05 evening: on the car route it cut the yaw error of a foggy turn 4.3 -> 1.2 deg
+  // but turned the stereo odometry's 0.1 deg translation-direction bias into a yaw drift).
   double ground_vehicle_lateral_sigma_m_s = 0.0;
   double ground_vehicle_vertical_sigma_m_s = 0.0;
+  // Without IMU, with a ground-vehicle sigma: estimate the vehicle's forward axis in the body
+  // frame (yaw and pitch, a global block with this prior sigma in rad and this random walk in
+  // rad/sqrt(s); 0: the body x axis, fixed). See CreateGroundVehiclePairFactorWithBoresight.
+  double ground_vehicle_boresight_sigma_rad = 0.0;
+  double ground_vehicle_boresight_walk_rad_per_sqrt_s = 0.0;
   int max_iterations = 8;  // Levenberg-Marquardt iterations per frame
   // Levenberg-Marquardt's first damping is 1 / this radius (Ceres' default 1e4 damps the weakly
   // constrained directions, far landmark depths and the velocity/attitude they couple to, so
@@ -314,9 +323,13 @@ class SlidingWindowBackend {
   std::vector<std::unique_ptr<ResidualSpec>> BuildStateResiduals() const;
   // The ground-vehicle constraint of `state` (nullptr when off or without IMU).
   std::unique_ptr<ResidualSpec> GroundVehicleSpec(const State& state) const;
+  // Without IMU: the ground-vehicle constraint between consecutive states a and b (nullptr when
+  // off, with IMU or when they share a stamp).
+  std::unique_ptr<ResidualSpec> GroundVehiclePairSpec(const State& a, const State& b) const;
+  int boresight_ = -1;  // global block of the ground vehicle's boresight (-1: none)
   bool ground_vehicle() const {
-    return options_.use_imu && (options_.ground_vehicle_lateral_sigma_m_s > 0 ||
-                                options_.ground_vehicle_vertical_sigma_m_s > 0);
+    return options_.ground_vehicle_lateral_sigma_m_s > 0 ||
+           options_.ground_vehicle_vertical_sigma_m_s > 0;
   }
   // The prior as a residual (nullptr when there is none).
   std::unique_ptr<ResidualSpec> PriorSpec() const;

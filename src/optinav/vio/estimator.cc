@@ -134,6 +134,9 @@ std::map<std::string, Section> OptionSections(VioOptions& o) {
         {"predicted_gate_median_factor", &b.predicted_gate_median_factor},
         {"ground_vehicle_lateral_sigma_m_s", &b.ground_vehicle_lateral_sigma_m_s},
         {"ground_vehicle_vertical_sigma_m_s", &b.ground_vehicle_vertical_sigma_m_s},
+        {"ground_vehicle_boresight_sigma_rad", &b.ground_vehicle_boresight_sigma_rad},
+        {"ground_vehicle_boresight_walk_rad_per_sqrt_s",
+         &b.ground_vehicle_boresight_walk_rad_per_sqrt_s},
         {"stereo_only_outlier_pixels", &o.stereo_only_outlier_pixels},
         {"stereo_only_initial_trust_region_radius", &o.stereo_only_initial_trust_region_radius},
         {"stereo_only_function_tolerance", &o.stereo_only_function_tolerance},
@@ -609,6 +612,8 @@ bool VioEstimator::MotionInitStep(const FramePacket& packet) {
     if (stereo < options_.min_init_stereo_features) return false;
     BackendOptions odometry = options_.backend;
     odometry.use_imu = false;
+    // The ground vehicle's velocity constraint is the window's, with the IMU.
+    odometry.ground_vehicle_lateral_sigma_m_s = odometry.ground_vehicle_vertical_sigma_m_s = 0;
     init_odometry_ =
         std::make_unique<SlidingWindowBackend>(odometry, MakeExtrinsics(rig_, body_from_cam0_));
     StateEstimate first;

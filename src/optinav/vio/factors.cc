@@ -286,6 +286,40 @@ class GroundVehicleFunctor {
   double w_lateral_, w_vertical_;
 };
 
+class GroundVehiclePairFunctor {
+ public:
+  GroundVehiclePairFunctor(double dt, double sigma_lateral, double sigma_vertical)
+      : w_lateral_(sigma_lateral > 0 ? 1.0 / (sigma_lateral * dt) : 0.0),
+        w_vertical_(sigma_vertical > 0 ? 1.0 / (sigma_vertical * dt) : 0.0) {}
+  template <typename T>
+  bool operator()(const T* pose_a, const T* pose_b, T* residual) const {
+    const T zero[2] = {T(0), T(0)};
+    return (*this)(pose_a, pose_b, zero, residual);
+  }
+  template <typename T>
+  bool operator()(const T* pose_a, const T* pose_b, const T* boresight, T* residual) const {
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> p_a(pose_a), p_b(pose_b);
+    const Eigen::Map<const Eigen::Quaternion<T>> world_from_a(pose_a + 3), world_from_b(pose_b + 3);
+    // Half of the rotation a -> b: the unit quaternion (1 + w, v) / |.| of the shorter way.
+    Eigen::Quaternion<T> a_from_b = world_from_a.conjugate() * world_from_b;
+    if (a_from_b.w() < T(0)) a_from_b.coeffs() = -a_from_b.coeffs();
+    Eigen::Quaternion<T> a_from_mid(a_from_b.w() + T(1), a_from_b.x(), a_from_b.y(), a_from_b.z());
+    a_from_mid.normalize();
+    Eigen::Matrix<T, 3, 1> chord = (world_from_a * a_from_mid).conjugate() * (p_b - p_a);
+    // Into the vehicle's axes: Ry(pitch)^T Rz(yaw)^T.
+    const T cy = cos(boresight[0]), sy = sin(boresight[0]);
+    const T cp = cos(boresight[1]), sp = sin(boresight[1]);
+    const T x1 = cy * chord.x() + sy * chord.y(), y1 = -sy * chord.x() + cy * chord.y();
+    chord = Eigen::Matrix<T, 3, 1>(cp * x1 - sp * chord.z(), y1, sp * x1 + cp * chord.z());
+    residual[0] = T(w_lateral_) * chord.y();
+    residual[1] = T(w_vertical_) * chord.z();
+    return true;
+  }
+
+ private:
+  double w_lateral_, w_vertical_;
+};
+
 }  // namespace
 
 const ceres::Manifold* PoseManifold() {
@@ -304,6 +338,21 @@ ceres::CostFunction* CreateGroundVehicleFactor(double sigma_lateral_m_s,
                                                double sigma_vertical_m_s) {
   return new ceres::AutoDiffCostFunction<GroundVehicleFunctor, 2, kPoseSize, kSpeedBiasSize>(
       new GroundVehicleFunctor(sigma_lateral_m_s, sigma_vertical_m_s));
+}
+
+ceres::CostFunction* CreateGroundVehiclePairFactor(double dt_s, double sigma_lateral_m_s,
+                                                   double sigma_vertical_m_s) {
+  OPTINAV_CHECK(dt_s > 0);
+  return new ceres::AutoDiffCostFunction<GroundVehiclePairFunctor, 2, kPoseSize, kPoseSize>(
+      new GroundVehiclePairFunctor(dt_s, sigma_lateral_m_s, sigma_vertical_m_s));
+}
+
+ceres::CostFunction* CreateGroundVehiclePairFactorWithBoresight(double dt_s,
+                                                                double sigma_lateral_m_s,
+                                                                double sigma_vertical_m_s) {
+  OPTINAV_CHECK(dt_s > 0);
+  return new ceres::AutoDiffCostFunction<GroundVehiclePairFunctor, 2, kPoseSize, kPoseSize, 2>(
+      new GroundVehiclePairFunctor(dt_s, sigma_lateral_m_s, sigma_vertical_m_s));
 }
 
 ceres::CostFunction* CreateReprojectionFactor(const Rigid3d& cam_from_body,

@@ -41,6 +41,21 @@ ceres::CostFunction* CreateImuFactor(const ImuPreintegration& preintegration,
 // origin near the rear axle (a car's IMU at the rear axle, the simulator's car).
 ceres::CostFunction* CreateGroundVehicleFactor(double sigma_lateral_m_s, double sigma_vertical_m_s);
 
+// The same constraint without IMU (stereo-only: no velocity state), between two consecutive
+// poses a and b dt_s apart: the chord p_b - p_a in the body frame halfway between the two
+// attitudes (R_a Exp(Log(R_a^T R_b) / 2), the heading at the arc's middle, exact on an arc of
+// constant curvature) is along x. 2 residuals: its y / (sigma_lateral dt) and z /
+// (sigma_vertical dt), i.e. the mean body-frame velocity's components. Blocks: pose_a, pose_b.
+ceres::CostFunction* CreateGroundVehiclePairFactor(double dt_s, double sigma_lateral_m_s,
+                                                   double sigma_vertical_m_s);
+// The same with the vehicle's forward axis in the body frame estimated: a third block (2) holds
+// its yaw and pitch (rad; the axis is Rz(yaw) Ry(pitch) x, the residuals the chord's components
+// along Rz(yaw) Ry(pitch) y and z). A camera-to-vehicle boresight error, or a small bias in the
+// odometry's translation direction, is then one constant, not a rotation of every step.
+ceres::CostFunction* CreateGroundVehiclePairFactorWithBoresight(double dt_s,
+                                                                double sigma_lateral_m_s,
+                                                                double sigma_vertical_m_s);
+
 // The state at time t predicted from an anchor state i (its pose and speed-bias blocks) and the
 // IMU preintegrated from i to t, with first-order bias corrections:
 //   p_t = p_i + v_i dt + g dt^2 / 2 + R_i dp,  v_t = v_i + g dt + R_i dv,  R_t = R_i dR

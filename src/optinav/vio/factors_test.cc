@@ -1,6 +1,8 @@
 #include "optinav/vio/factors.h"
 
 #include <algorithm>
+#include <array>
+#include <cmath>
 #include <cstdio>
 #include <memory>
 #include <random>
@@ -160,6 +162,61 @@ TEST(GroundVehicle, PenalisesOnlyTheBodyFramesSidewaysAndVerticalVelocity) {
   EXPECT_NEAR(r.y(), -2.0, 1e-9);
   // A zero sigma leaves that component free.
   EXPECT_NEAR(evaluate({8, 0.2, -0.1}, 0, 0.05).x(), 0.0, 1e-12);
+}
+
+TEST(GroundVehicle, PairFactorTakesTheChordAtTheArcsMiddleHeading) {
+  // A car on a flat circle of radius 20 m (rear axle on the circle, x along the tangent),
+  // turning left through 30 deg in 1 s; the start heads north-east.
+  const double radius = 20, turn = 30 * M_PI / 180, dt = 1.0;
+  using Pose = std::array<double, kPoseSize>;
+  auto make_pose = [](const Eigen::Vector3d& p, const Eigen::Quaterniond& q) {
+    return Pose{p.x(), p.y(), p.z(), q.x(), q.y(), q.z(), q.w()};
+  };
+  auto on_circle = [&](double heading) {
+    const Eigen::Vector3d centre(5, 7, 2);
+    const double a = M_PI / 4 + heading - M_PI / 2;  // from the centre (to the left) to the car
+    return make_pose(
+        centre + radius * Eigen::Vector3d(std::cos(a), std::sin(a), 0),
+        Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 4 + heading, Eigen::Vector3d::UnitZ())));
+  };
+  auto evaluate = [&](const Pose& pa, const Pose& pb) {
+    std::unique_ptr<ceres::CostFunction> cost(CreateGroundVehiclePairFactor(dt, 0.1, 0.05));
+    const double* parameters[2] = {pa.data(), pb.data()};
+    Eigen::Vector2d r;
+    EXPECT_TRUE(cost->Evaluate(parameters, r.data(), nullptr));
+    return r;
+  };
+  auto moved = [](Pose pose, const Eigen::Vector3d& d) {
+    for (int i = 0; i < 3; ++i) pose[i] += d[i];
+    return pose;
+  };
+  const Pose a = on_circle(0), b = on_circle(turn);
+  // Along the arc: no residual, although the chord is 15 deg off both ends' headings.
+  EXPECT_LT(evaluate(a, b).norm(), 1e-9);
+  // The end 0.3 m to the right of the arc's middle heading: 0.3 m / (0.1 m/s * 1 s) = -3; 0.1 m
+  // above it: 0.1 / 0.05 = 2.
+  const Eigen::Quaterniond mid(Eigen::AngleAxisd(M_PI / 4 + turn / 2, Eigen::Vector3d::UnitZ()));
+  Eigen::Vector2d r = evaluate(a, moved(b, mid * Eigen::Vector3d(0, -0.3, 0)));
+  EXPECT_NEAR(r.x(), -3.0, 1e-9);
+  EXPECT_NEAR(r.y(), 0.0, 1e-9);
+  r = evaluate(a, moved(b, mid * Eigen::Vector3d(0, 0, 0.1)));
+  EXPECT_NEAR(r.x(), 0.0, 1e-9);
+  EXPECT_NEAR(r.y(), 2.0, 1e-9);
+  // A heading that turned 3 deg too far at b: the chord is 1.5 deg right of the middle's x.
+  Pose turned = b;
+  const Eigen::Quaterniond qb = Eigen::AngleAxisd(3 * M_PI / 180, Eigen::Vector3d::UnitZ()) *
+                                Eigen::Quaterniond(b[6], b[3], b[4], b[5]);
+  turned[3] = qb.x(), turned[4] = qb.y(), turned[5] = qb.z(), turned[6] = qb.w();
+  const double chord = 2 * radius * std::sin(turn / 2);
+  EXPECT_NEAR(evaluate(a, turned).x(), -chord * std::sin(1.5 * M_PI / 180) / 0.1, 1e-9);
+  // Straight up a 6 deg slope, pitched with it: no residual; the quaternions' sign is free.
+  const Eigen::Quaterniond uphill = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()) *
+                                    Eigen::AngleAxisd(-6 * M_PI / 180, Eigen::Vector3d::UnitY());
+  const Eigen::Vector3d start(1, 2, 3);
+  const Pose s0 = make_pose(start, uphill);
+  Pose s1 = make_pose(start + uphill * Eigen::Vector3d(7, 0, 0), uphill);
+  for (int i = 3; i < 7; ++i) s1[i] = -s1[i];
+  EXPECT_LT(evaluate(s0, s1).norm(), 1e-9);
 }
 
 }  // namespace
