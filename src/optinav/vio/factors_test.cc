@@ -217,6 +217,20 @@ TEST(GroundVehicle, PairFactorTakesTheChordAtTheArcsMiddleHeading) {
   Pose s1 = make_pose(start + uphill * Eigen::Vector3d(7, 0, 0), uphill);
   for (int i = 3; i < 7; ++i) s1[i] = -s1[i];
   EXPECT_LT(evaluate(s0, s1).norm(), 1e-9);
+  // With the boresight block: a body whose forward axis is Rz(yaw) Ry(pitch) x drives along that
+  // axis without residual; the body x version sees the offset.
+  const double boresight[2] = {0.02, -0.01};
+  const Eigen::Vector3d axis = Eigen::AngleAxisd(boresight[0], Eigen::Vector3d::UnitZ()) *
+                               Eigen::AngleAxisd(boresight[1], Eigen::Vector3d::UnitY()) *
+                               Eigen::Vector3d::UnitX();
+  const Pose t1 = make_pose(start + uphill * (7 * axis), uphill);
+  std::unique_ptr<ceres::CostFunction> with(
+      CreateGroundVehiclePairFactorWithBoresight(dt, 0.1, 0.05));
+  const double* parameters[3] = {s0.data(), t1.data(), boresight};
+  Eigen::Vector2d r3;
+  ASSERT_TRUE(with->Evaluate(parameters, r3.data(), nullptr));
+  EXPECT_LT(r3.norm(), 1e-9);
+  EXPECT_NEAR(evaluate(s0, t1).x(), 7 * axis.y() / 0.1, 1e-9);
 }
 
 }  // namespace
