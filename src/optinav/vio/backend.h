@@ -326,7 +326,6 @@ class SlidingWindowBackend {
   // Without IMU: the ground-vehicle constraint between consecutive states a and b (nullptr when
   // off, with IMU or when they share a stamp).
   std::unique_ptr<ResidualSpec> GroundVehiclePairSpec(const State& a, const State& b) const;
-  int boresight_ = -1;  // global block of the ground vehicle's boresight (-1: none)
   bool ground_vehicle() const {
     return options_.ground_vehicle_lateral_sigma_m_s > 0 ||
            options_.ground_vehicle_vertical_sigma_m_s > 0;
@@ -355,6 +354,7 @@ class SlidingWindowBackend {
     Eigen::VectorXd walk_per_sqrt_s;
   };
   std::vector<std::unique_ptr<Global>> globals_;
+  int boresight_ = -1;  // globals_ index of the ground vehicle's boresight (-1: none)
   LinearPrior prior_;
   std::set<uint64_t> rejected_tracks_;
   BackendStats stats_;

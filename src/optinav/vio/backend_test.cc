@@ -147,8 +147,7 @@ struct CarRuns {
 CarRuns RunStereoOnlyCar(double yaw_offset, double boresight_sigma_rad,
                          const RunResult* free = nullptr) {
   SyntheticScene scene;
-  scene.trajectory = AnalyticTrajectory::Car();
-  scene.trajectory.yaw_offset = yaw_offset;
+  scene.trajectory = AnalyticTrajectory::Car(yaw_offset);
   const auto frames = scene.Generate(20.0, 20.0, 0.7, true, 5);
   BackendOptions options;
   options.use_imu = false;

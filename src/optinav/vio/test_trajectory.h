@@ -13,16 +13,17 @@ namespace optinav::vio {
 struct AnalyticTrajectory {
   double radius_m = 2.0, omega = 0.5, height_m = 1.2, bob_m = 0.3;
   double yaw0 = 0.3, yaw_amp = 0.6, pitch_amp = 0.15, roll_amp = 0.1;
+  double yaw_rate = 0.0;  // a steady turn added to the yaw (rad/s)
 
-  // A car on a flat circle: level, heading along the velocity (body x forward, no side-slip).
-  static AnalyticTrajectory Car() {
+  // A car on a flat circle: level, heading along the velocity (body x forward, no side-slip);
+  // `yaw_offset` turns the body x axis that far left of the velocity.
+  static AnalyticTrajectory Car(double yaw_offset = 0.0) {
     AnalyticTrajectory c;
     c.bob_m = 0, c.pitch_amp = 0, c.roll_amp = 0, c.yaw_amp = 0;
-    c.yaw_along_velocity = true;
+    c.yaw0 = M_PI / 2 + yaw_offset;
+    c.yaw_rate = c.omega;
     return c;
   }
-  bool yaw_along_velocity = false;
-  double yaw_offset = 0;  // with yaw_along_velocity: the body x axis this far left of the velocity
 
   Eigen::Vector3d Position(double t) const {
     return {radius_m * std::cos(omega * t), radius_m * std::sin(omega * t),
@@ -38,13 +39,12 @@ struct AnalyticTrajectory {
   }
   // Euler angles and their rates.
   Eigen::Vector3d Angles(double t) const {  // yaw, pitch, roll
-    const double yaw =
-        yaw_along_velocity ? omega * t + M_PI / 2 + yaw_offset : yaw0 + yaw_amp * std::sin(0.4 * t);
-    return {yaw, pitch_amp * std::sin(0.9 * t), roll_amp * std::sin(1.3 * t)};
+    return {yaw0 + yaw_rate * t + yaw_amp * std::sin(0.4 * t), pitch_amp * std::sin(0.9 * t),
+            roll_amp * std::sin(1.3 * t)};
   }
   Eigen::Vector3d AngleRates(double t) const {
-    const double yaw_rate = yaw_along_velocity ? omega : 0.4 * yaw_amp * std::cos(0.4 * t);
-    return {yaw_rate, 0.9 * pitch_amp * std::cos(0.9 * t), 1.3 * roll_amp * std::cos(1.3 * t)};
+    return {yaw_rate + 0.4 * yaw_amp * std::cos(0.4 * t), 0.9 * pitch_amp * std::cos(0.9 * t),
+            1.3 * roll_amp * std::cos(1.3 * t)};
   }
   Eigen::Quaterniond Rotation(double t) const {
     const Eigen::Vector3d a = Angles(t);
