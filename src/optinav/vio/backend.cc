@@ -5,6 +5,8 @@
 #include <map>
 #include <memory>
 
+#include <opencv2/calib3d.hpp>
+
 #include "optinav/camera/camera.h"
 #include "optinav/util/error.h"
 #include "optinav/util/statistics.h"
@@ -85,6 +87,9 @@ std::string BackendOptions::Check() const {
   if (!(marginalize_tracked_max_depth_m >= 0))
     return "marginalize_tracked_max_depth_m must be >= 0 (0: no limit)";
   if (!(predicted_gate_median_factor >= 0)) return "predicted_gate_median_factor must be >= 0";
+  if (!(stereo_only_pnp_gate_pixels >= 0)) return "stereo_only_pnp_gate_pixels must be >= 0";
+  if (!(stereo_only_pnp_gate_median_factor >= 0))
+    return "stereo_only_pnp_gate_median_factor must be >= 0";
   if (anchored_observations_per_landmark < 0)
     return "anchored_observations_per_landmark must be >= 0 (0: off), got " +
            std::to_string(anchored_observations_per_landmark);
@@ -499,6 +504,7 @@ StateEstimate SlidingWindowBackend::AddFrame(int64_t t_ns, const ImuPreintegrati
   State* added = states_.back().get();
   AddObservations(added, observations);
   if (options_.use_imu && options_.predicted_gate_pixels > 0) GateOnPrediction(*added);
+  if (!options_.use_imu && options_.stereo_only_pnp_gate_pixels > 0) GateOnPnp(*added);
   TriangulateNew(added);
   if (keyframe || states_.size() < 3) {
     Optimize();
@@ -816,18 +822,97 @@ void SlidingWindowBackend::GateOnPrediction(const State& state) {
     if (landmark.initialized)
       errors.emplace_back(id, ReprojectionErrorPx(body_from_world, landmark, obs));
   }
-  double gate = options_.predicted_gate_pixels;
-  if (options_.predicted_gate_median_factor > 0 && !errors.empty()) {
+  RejectAboveGate(errors, options_.predicted_gate_pixels, options_.predicted_gate_median_factor);
+}
+
+void SlidingWindowBackend::RejectAboveGate(const std::vector<std::pair<uint64_t, double>>& errors,
+                                           double gate, double median_factor) {
+  if (median_factor > 0 && !errors.empty()) {
     std::vector<double> values;
     values.reserve(errors.size());
     for (const auto& [id, e] : errors) values.push_back(e);
-    gate = std::max(gate, options_.predicted_gate_median_factor * Median(std::move(values)));
+    gate = std::max(gate, median_factor * Median(std::move(values)));
   }
   std::set<uint64_t> bad;
   for (const auto& [id, e] : errors)
     if (e > gate) bad.insert(id);
   RejectLandmarks(bad);
   stats_.num_gated = static_cast<int>(bad.size());
+}
+
+void SlidingWindowBackend::GateOnPnp(const State& state) {
+  stats_.num_gated = 0;
+  std::vector<uint64_t> ids;
+  std::vector<cv::Point3d> object;
+  std::vector<cv::Point2d> image;  // normalised left-camera coordinates
+  for (const auto& [id, obs] : state.observations) {
+    const Landmark& landmark = *landmarks_.at(id);
+    if (!landmark.Constrained()) continue;
+    ids.push_back(id);
+    object.emplace_back(landmark.position[0], landmark.position[1], landmark.position[2]);
+    image.emplace_back(obs.left.x(), obs.left.y());
+  }
+  constexpr size_t kMinLandmarks = 12;
+  if (ids.size() < kMinLandmarks) return;
+  // Seeded by the predicted pose; the camera matrix is the identity on normalised coordinates.
+  const Rigid3d predicted_cam0_from_world = rig_.cam0_from_body * state.WorldFromBody().Inverse();
+  const Eigen::AngleAxisd aa(predicted_cam0_from_world.rotation);
+  const Eigen::Vector3d r0 = aa.angle() * aa.axis();
+  const Eigen::Vector3d& t0 = predicted_cam0_from_world.translation;
+  cv::Mat rvec = (cv::Mat_<double>(3, 1) << r0.x(), r0.y(), r0.z());
+  cv::Mat tvec = (cv::Mat_<double>(3, 1) << t0.x(), t0.y(), t0.z());
+  std::vector<int> inliers;
+  const double gate = options_.stereo_only_pnp_gate_pixels;
+  if (!cv::solvePnPRansac(object, image, cv::Mat::eye(3, 3, CV_64F), cv::noArray(), rvec, tvec,
+                          true, 100, static_cast<float>(gate / rig_.focal_px), 0.99, inliers,
+                          cv::SOLVEPNP_P3P) ||
+      2 * inliers.size() < ids.size())
+    return;
+  // The landmarks' errors (pixels, left and right camera) from a camera pose (Rodrigues vector,
+  // translation), and how many are within the gate.
+  auto errors_at = [&](const cv::Mat& rv, const cv::Mat& tv, size_t* within) {
+    cv::Mat rotation;
+    cv::Rodrigues(rv, rotation);
+    Eigen::Matrix3d r;
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) r(i, j) = rotation.at<double>(i, j);
+    const Rigid3d cam0_from_world{Eigen::Quaterniond(r),
+                                  {tv.at<double>(0), tv.at<double>(1), tv.at<double>(2)}};
+    const Rigid3d body_from_world = rig_.cam0_from_body.Inverse() * cam0_from_world;
+    std::vector<std::pair<uint64_t, double>> errors;
+    *within = 0;
+    for (uint64_t id : ids) {
+      const double e =
+          ReprojectionErrorPx(body_from_world, *landmarks_.at(id), state.observations.at(id));
+      errors.emplace_back(id, e);
+      *within += e <= gate ? 1 : 0;
+    }
+    return errors;
+  };
+  // OpenCV refines the RANSAC model with EPnP on the inliers; Levenberg-Marquardt from there
+  // minimises the reprojection error the gate measures. It can also slide off (a road's
+  // self-similar texture), so the refinement is kept only when it keeps more landmarks.
+  const cv::Mat ransac_rvec = rvec.clone(), ransac_tvec = tvec.clone();
+  {
+    std::vector<cv::Point3d> inlier_object;
+    std::vector<cv::Point2d> inlier_image;
+    for (int i : inliers) {
+      inlier_object.push_back(object[i]);
+      inlier_image.push_back(image[i]);
+    }
+    cv::solvePnP(inlier_object, inlier_image, cv::Mat::eye(3, 3, CV_64F), cv::noArray(), rvec, tvec,
+                 true, cv::SOLVEPNP_ITERATIVE);
+  }
+  size_t within = 0, within_ransac = 0;
+  std::vector<std::pair<uint64_t, double>> errors = errors_at(rvec, tvec, &within);
+  auto ransac_errors = errors_at(ransac_rvec, ransac_tvec, &within_ransac);
+  if (within_ransac > within) {
+    errors = std::move(ransac_errors);
+    within = within_ransac;
+  }
+  // A pose that keeps fewer than half of the landmarks is not trusted to judge them.
+  if (2 * within < ids.size()) return;
+  RejectAboveGate(errors, gate, options_.stereo_only_pnp_gate_median_factor);
 }
 
 void SlidingWindowBackend::RemoveOutliers() {

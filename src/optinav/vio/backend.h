@@ -91,6 +91,20 @@ struct BackendOptions {
   // are a minority moving against the scene, so a relative gate keeps the scene in a turn or a
   // jolt and still rejects them.
   double predicted_gate_median_factor = 0.0;
+  // Without IMU: the same gate against a pose measured from the new frame itself instead of a
+  // prediction: a RANSAC PnP (P3P hypotheses, left-camera observations of the window's
+  // landmarks, inlier threshold this many pixels; 0: off) gives the pose, then a landmark whose
+  // newest observation reprojects farther than this, or than stereo_only_pnp_gate_median_factor
+  // times the median when that is larger, is rejected with its track. Particles that both
+  // cameras see (snow, leaves) are triangulated like the scene and drift with the wind; the
+  // frontend's fundamental-matrix RANSAC passes a drift along the epipolar line, PnP does not.
+  // Not used when the PnP finds fewer than 12 landmarks, or when its pose keeps fewer than half
+  // of them within the gate (a refinement that slid off on a road's repetitive texture once
+  // rejected 64 landmarks at once and the pose jumped 9 deg). Off by default (VioOptions): on the
+  // car routes the stereo odometry's drift in leaves, fog and dust stayed as it was (docs/VIO.md,
+  // weather, 2026-12-05 night).
+  double stereo_only_pnp_gate_pixels = 0.0;
+  double stereo_only_pnp_gate_median_factor = 0.0;
   // With IMU: a wheeled ground vehicle's non-holonomic constraint on every state, its body-frame
   // velocity's sideways (y) and vertical (z) components ~ N(0, sigma^2) (m/s; 0: that component
   // unconstrained; both 0: off, the default). For a body frame with x forward and its origin near
@@ -306,6 +320,13 @@ class SlidingWindowBackend {
   // Before the solve: rejects the landmarks that the predicted pose of `state` (the newest)
   // reprojects farther than predicted_gate_pixels from its observations.
   void GateOnPrediction(const State& state);
+  // Without IMU, before the solve: the gate against a RANSAC PnP pose of `state` (the newest;
+  // BackendOptions::stereo_only_pnp_gate_pixels).
+  void GateOnPnp(const State& state);
+  // Rejects the landmarks whose reprojection error in `errors` exceeds `gate` pixels, or
+  // `median_factor` times the errors' median when that is larger (0: the fixed gate only).
+  void RejectAboveGate(const std::vector<std::pair<uint64_t, double>>& errors, double gate,
+                       double median_factor);
   // The larger of the left and right reprojection errors (pixels) of `landmark` (initialized)
   // for `obs`, seen from a state at the inverse of `body_from_world`.
   double ReprojectionErrorPx(const Rigid3d& body_from_world, const Landmark& landmark,

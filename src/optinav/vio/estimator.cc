@@ -33,6 +33,10 @@ std::string VioOptions::Check() const {
   if (std::string e = backend.Check(); !e.empty()) return "backend." + e;
   if (std::string e = loop_closure.Check(); !e.empty()) return e;
   if (!(stereo_only_outlier_pixels >= 0)) return "backend.stereo_only_outlier_pixels must be >= 0";
+  if (!(stereo_only_pnp_gate_pixels >= 0))
+    return "backend.stereo_only_pnp_gate_pixels must be >= 0 (0: off)";
+  if (!(stereo_only_pnp_gate_median_factor >= 0))
+    return "backend.stereo_only_pnp_gate_median_factor must be >= 0 (0: off)";
   if (!(stereo_only_initial_trust_region_radius > 0) || !(stereo_only_function_tolerance > 0))
     return "backend.stereo_only_initial_trust_region_radius and function_tolerance must be > 0";
   if (stereo_only_anchored_observations_per_landmark < 0)
@@ -132,6 +136,8 @@ std::map<std::string, Section> OptionSections(VioOptions& o) {
         {"anchored_stereo", &b.anchored_stereo},
         {"predicted_gate_pixels", &b.predicted_gate_pixels},
         {"predicted_gate_median_factor", &b.predicted_gate_median_factor},
+        {"stereo_only_pnp_gate_pixels", &o.stereo_only_pnp_gate_pixels},
+        {"stereo_only_pnp_gate_median_factor", &o.stereo_only_pnp_gate_median_factor},
         {"ground_vehicle_lateral_sigma_m_s", &b.ground_vehicle_lateral_sigma_m_s},
         {"ground_vehicle_vertical_sigma_m_s", &b.ground_vehicle_vertical_sigma_m_s},
         {"ground_vehicle_boresight_sigma_rad", &b.ground_vehicle_boresight_sigma_rad},
@@ -311,6 +317,8 @@ BackendOptions WithMode(BackendOptions b, const VioOptions& o, const ImuNoise& n
     b.initial_trust_region_radius = o.stereo_only_initial_trust_region_radius;
     b.function_tolerance = o.stereo_only_function_tolerance;
     b.marginalize_tracked_landmarks = o.stereo_only_marginalize_tracked_landmarks;
+    b.stereo_only_pnp_gate_pixels = o.stereo_only_pnp_gate_pixels;
+    b.stereo_only_pnp_gate_median_factor = o.stereo_only_pnp_gate_median_factor;
     b.anchored_observations_per_landmark =
         b.marginalize_tracked_landmarks ? 0 : o.stereo_only_anchored_observations_per_landmark;
   }
@@ -822,12 +830,13 @@ std::optional<FrameEstimate> VioEstimator::RunBackend(FramePacket packet) {
       const BackendStats& bs = backend_.stats();
       spdlog::trace(
           "vio frame {:.3f}: kf {} tracked {} fb {} ransac {} detected {} stereo {} flow {:.1f} "
-          "constrained {} landmarks {} outliers {} gated {} median {:.3f} gyro_bias {:.6f} {:.6f} "
-          "{:.6f}",
+          "constrained {} landmarks {} outliers {} gated {} median {:.3f} iterations {} gyro_bias "
+          "{:.6f} {:.6f} {:.6f}",
           t_ns * 1e-9, features.keyframe ? 1 : 0, fs.tracked, fs.rejected_fb, fs.rejected_ransac,
           fs.detected, fs.stereo, fs.median_flow_px, bs.newest_constrained_landmarks,
           bs.num_landmarks, bs.num_outliers_removed, bs.num_gated, bs.median_reprojection_px,
-          estimate.bias.gyro.x(), estimate.bias.gyro.y(), estimate.bias.gyro.z());
+          bs.solver_iterations, estimate.bias.gyro.x(), estimate.bias.gyro.y(),
+          estimate.bias.gyro.z());
     }
     // Divergence.
     const bool use_imu = options_.mode == VioMode::kStereoImu;

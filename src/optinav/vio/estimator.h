@@ -74,6 +74,13 @@ struct VioOptions {
   // poses against them; the frontend replaces the rejected tracks (simulated car route: 4 px ->
   // 2 px, docs/VIO.md).
   double stereo_only_outlier_pixels = 2.0;
+  // Stereo-only mode: BackendOptions::stereo_only_pnp_gate_pixels and ..._median_factor (YAML
+  // backend.stereo_only_pnp_gate_pixels, backend.stereo_only_pnp_gate_median_factor; 0: off,
+  // the default). Landmarks are gated before the solve on a RANSAC PnP pose of the new frame.
+  // Off: on the car routes it did not change what the stereo odometry does in leaves, fog or
+  // dust (docs/VIO.md weather, 2026-12-05 night).
+  double stereo_only_pnp_gate_pixels = 0.0;
+  double stereo_only_pnp_gate_median_factor = 0.0;
   // Stereo-only mode: the solver's first trust-region radius and function tolerance (YAML
   // backend.stereo_only_*). The stereo-inertial defaults (1e6, 1e-4) make the window converge
   // with the IMU; without it the car route drifts more with them (mean 4.5 m against 2.9 m with

@@ -613,6 +613,8 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(file.frontend.corner_block_px, d.frontend.corner_block_px);
   EXPECT_EQ(file.backend.window_keyframes, d.backend.window_keyframes);
   EXPECT_EQ(file.backend.max_iterations, d.backend.max_iterations);
+  EXPECT_EQ(file.stereo_only_pnp_gate_pixels, d.stereo_only_pnp_gate_pixels);
+  EXPECT_EQ(file.stereo_only_pnp_gate_median_factor, d.stereo_only_pnp_gate_median_factor);
   EXPECT_EQ(file.backend.huber_pixels, d.backend.huber_pixels);
   EXPECT_EQ(file.backend.outlier_pixels, d.backend.outlier_pixels);
   EXPECT_EQ(file.backend.predicted_gate_pixels, d.backend.predicted_gate_pixels);
