@@ -10,6 +10,7 @@
 #include "optinav/camera/camera.h"
 #include "optinav/util/error.h"
 #include "optinav/util/statistics.h"
+#include "optinav/vio/internal/cv_pose.h"
 
 namespace optinav::vio {
 
@@ -855,12 +856,8 @@ void SlidingWindowBackend::GateOnPnp(const State& state) {
   constexpr size_t kMinLandmarks = 12;
   if (ids.size() < kMinLandmarks) return;
   // Seeded by the predicted pose; the camera matrix is the identity on normalised coordinates.
-  const Rigid3d predicted_cam0_from_world = rig_.cam0_from_body * state.WorldFromBody().Inverse();
-  const Eigen::AngleAxisd aa(predicted_cam0_from_world.rotation);
-  const Eigen::Vector3d r0 = aa.angle() * aa.axis();
-  const Eigen::Vector3d& t0 = predicted_cam0_from_world.translation;
-  cv::Mat rvec = (cv::Mat_<double>(3, 1) << r0.x(), r0.y(), r0.z());
-  cv::Mat tvec = (cv::Mat_<double>(3, 1) << t0.x(), t0.y(), t0.z());
+  cv::Mat rvec, tvec;
+  RvecTvecFromPose(rig_.cam0_from_body * state.WorldFromBody().Inverse(), &rvec, &tvec);
   std::vector<int> inliers;
   const double gate = options_.stereo_only_pnp_gate_pixels;
   if (!cv::solvePnPRansac(object, image, cv::Mat::eye(3, 3, CV_64F), cv::noArray(), rvec, tvec,
@@ -871,14 +868,7 @@ void SlidingWindowBackend::GateOnPnp(const State& state) {
   // The landmarks' errors (pixels, left and right camera) from a camera pose (Rodrigues vector,
   // translation), and how many are within the gate.
   auto errors_at = [&](const cv::Mat& rv, const cv::Mat& tv, size_t* within) {
-    cv::Mat rotation;
-    cv::Rodrigues(rv, rotation);
-    Eigen::Matrix3d r;
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) r(i, j) = rotation.at<double>(i, j);
-    const Rigid3d cam0_from_world{Eigen::Quaterniond(r),
-                                  {tv.at<double>(0), tv.at<double>(1), tv.at<double>(2)}};
-    const Rigid3d body_from_world = rig_.cam0_from_body.Inverse() * cam0_from_world;
+    const Rigid3d body_from_world = rig_.cam0_from_body.Inverse() * PoseFromRvecTvec(rv, tv);
     std::vector<std::pair<uint64_t, double>> errors;
     *within = 0;
     for (uint64_t id : ids) {

@@ -18,6 +18,7 @@
 #include "optinav/features/features.h"
 #include "optinav/geometry/angles.h"
 #include "optinav/util/error.h"
+#include "optinav/vio/internal/cv_pose.h"
 
 namespace optinav::vio {
 
@@ -246,22 +247,6 @@ LoopCloser::Keyframe LoopCloser::Describe(const StateEstimate& state, const cv::
                 kl.size(), kf.points.size());
   return kf;
 }
-
-namespace {
-
-// OpenCV's PnP pose (Rodrigues vector, translation) as a transform.
-Rigid3d PoseFromRvecTvec(const cv::Mat& rvec, const cv::Mat& tvec) {
-  cv::Mat r;
-  cv::Rodrigues(rvec, r);
-  Eigen::Matrix3d rotation;
-  cv::cv2eigen(r, rotation);
-  Eigen::Matrix<double, 3, 4> m;
-  m.leftCols<3>() = rotation;
-  m.col(3) << tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2);
-  return Rigid3d::FromMatrix(m);
-}
-
-}  // namespace
 
 std::vector<std::pair<int, int>> GuidedLoopMatches(const std::vector<Eigen::Vector3d>& points,
                                                    const cv::Mat& point_descriptors,
