@@ -276,25 +276,21 @@ TEST(Backend, PredictedGateRejectsDriftingParticles) {
   // The stereo-inertial window among drifting particles, without and with the gate on the
   // IMU-predicted pose (every frame a keyframe, as on the car route).
   const ParticleRun run;
-  const SyntheticScene& scene = run.scene;
-  const auto& clean_frames = run.clean;
-  const auto& frames = run.with_particles;
-  const std::set<uint64_t>& particle_ids = run.particle_ids;
   BackendOptions options;
-  const RunResult clean = RunBackend(scene, clean_frames, options, 1);
-  const RunResult ungated = RunBackend(scene, frames, options, 1);
+  const RunResult clean = RunBackend(run.scene, run.clean, options, 1);
+  const RunResult ungated = RunBackend(run.scene, run.with_particles, options, 1);
   options.predicted_gate_pixels = 2.0;
-  const RunResult gated = RunBackend(scene, frames, options, 1);
+  const RunResult gated = RunBackend(run.scene, run.with_particles, options, 1);
   options.predicted_gate_median_factor = 3.0;  // the gate relative to the frame's median error
-  const RunResult relative = RunBackend(scene, frames, options, 1);
+  const RunResult relative = RunBackend(run.scene, run.with_particles, options, 1);
   const double deg = 180 / M_PI;
   std::printf(
       "%zu particles among the room's tracks: max rotation error without the gate %.3f deg, "
       "with it %.3f deg (< 0.5 x, < 2 x %.3f deg without particles); position RMSE %.4f / "
       "%.4f m (%.4f m without particles)\n",
-      particle_ids.size(), ungated.max_rotation_error_rad * deg, gated.max_rotation_error_rad * deg,
-      clean.max_rotation_error_rad * deg, ungated.position_rmse_m, gated.position_rmse_m,
-      clean.position_rmse_m);
+      run.particle_ids.size(), ungated.max_rotation_error_rad * deg,
+      gated.max_rotation_error_rad * deg, clean.max_rotation_error_rad * deg,
+      ungated.position_rmse_m, gated.position_rmse_m, clean.position_rmse_m);
   EXPECT_LT(gated.max_rotation_error_rad, 0.5 * ungated.max_rotation_error_rad);
   EXPECT_LT(gated.max_rotation_error_rad, 2.0 * clean.max_rotation_error_rad);
   EXPECT_LT(gated.position_rmse_m, ungated.position_rmse_m);
@@ -311,26 +307,23 @@ TEST(Backend, StereoOnlyPnpGateRejectsDriftingParticles) {
   // Without IMU the gate measures against a RANSAC PnP pose of the new frame: the same drifting
   // particles, stereo-only, every frame a keyframe.
   const ParticleRun run;
-  const SyntheticScene& scene = run.scene;
-  const auto& clean_frames = run.clean;
-  const auto& frames = run.with_particles;
-  const std::set<uint64_t>& particle_ids = run.particle_ids;
   BackendOptions options;
   options.use_imu = false;
   options.stereo_only_outlier_pixels = 2.0;
-  const RunResult clean = RunBackend(scene, clean_frames, options, 1);
-  const RunResult ungated = RunBackend(scene, frames, options, 1);
+  const RunResult clean = RunBackend(run.scene, run.clean, options, 1);
+  const RunResult ungated = RunBackend(run.scene, run.with_particles, options, 1);
   options.stereo_only_pnp_gate_pixels = 2.0;
-  const RunResult gated = RunBackend(scene, frames, options, 1);
-  const RunResult gated_clean = RunBackend(scene, clean_frames, options, 1);
+  const RunResult gated = RunBackend(run.scene, run.with_particles, options, 1);
+  const RunResult gated_clean = RunBackend(run.scene, run.clean, options, 1);
   const double deg = 180 / M_PI;
   std::printf(
       "stereo-only, %zu particles: max rotation error without the PnP gate %.3f deg, with it "
       "%.3f deg (< 0.5 x; %.3f deg without particles); position RMSE %.4f / %.4f m (%.4f m "
       "without particles; gated without particles %.4f m, < 1.5 x)\n",
-      particle_ids.size(), ungated.max_rotation_error_rad * deg, gated.max_rotation_error_rad * deg,
-      clean.max_rotation_error_rad * deg, ungated.position_rmse_m, gated.position_rmse_m,
-      clean.position_rmse_m, gated_clean.position_rmse_m);
+      run.particle_ids.size(), ungated.max_rotation_error_rad * deg,
+      gated.max_rotation_error_rad * deg, clean.max_rotation_error_rad * deg,
+      ungated.position_rmse_m, gated.position_rmse_m, clean.position_rmse_m,
+      gated_clean.position_rmse_m);
   EXPECT_LT(gated.max_rotation_error_rad, 0.5 * ungated.max_rotation_error_rad);
   EXPECT_LT(gated.position_rmse_m, 0.5 * ungated.position_rmse_m);
   // Without particles the gate keeps the scene.
