@@ -677,6 +677,7 @@ void SlidingWindowBackend::OptimizeNewest() {
   ceres::Solver::Summary summary;
   ceres::Solve(solver_options, &problem, &summary);
   stats_.num_observations = num_observations;
+  stats_.window_shift_deg = stats_.window_shift_m = 0;
   RecordSummary(summary);
   Eigen::Map<Eigen::Quaterniond>(newest.pose + 3).normalize();
 }
@@ -780,6 +781,18 @@ void SlidingWindowBackend::Optimize() {
   }
   ceres::Solver::Summary summary;
   ceres::Solve(solver_options, &problem, &summary);
+  stats_.window_shift_deg = stats_.window_shift_m = 0;
+  for (size_t k = 0; k + 1 < states_.size(); ++k) {
+    const double* before = states_[k]->pose;
+    const double* after = packed_of(before);
+    const Eigen::Map<const Eigen::Quaterniond> q0(before + 3), q1(after + 3);
+    stats_.window_shift_deg =
+        std::max(stats_.window_shift_deg, q0.angularDistance(q1.normalized()) * 180.0 / M_PI);
+    stats_.window_shift_m = std::max(
+        stats_.window_shift_m,
+        (Eigen::Map<const Eigen::Vector3d>(before) - Eigen::Map<const Eigen::Vector3d>(after))
+            .norm());
+  }
   for (size_t i = 0; i < live.size(); ++i)
     std::copy_n(packed.data() + offset[i], sizes[i], live[i]);
   stats_.num_landmarks = static_cast<int>(num_landmarks);

@@ -237,6 +237,9 @@ struct BackendStats {
   double initial_cost = 0, final_cost = 0;
   bool solver_usable = false;
   int newest_constrained_landmarks = 0;  // landmarks seen by the newest frame and another state
+  // How far the last window solve moved the states older than the newest (largest rotation, deg,
+  // and translation, m); 0 after a motion-only solve.
+  double window_shift_deg = 0, window_shift_m = 0;
 };
 
 class SlidingWindowBackend {

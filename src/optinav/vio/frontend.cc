@@ -112,6 +112,7 @@ StereoFrontend::StereoFrontend(const camera::StereoRig& rig, const FrontendOptio
 
 void StereoFrontend::Reset() {
   prev_pyramid_.clear();
+  prev_left_.release();
   tracks_.clear();
   keyframe_tracks_.clear();
   has_keyframe_ = false;
@@ -307,6 +308,30 @@ bool StereoFrontend::DecideKeyframe(int64_t t_ns, const std::vector<Track>& trac
   return keyframe;
 }
 
+cv::Mat StereoFrontend::Prepare(const cv::Mat& image, double left_mean, cv::Mat* buffer) {
+  cv::Mat out = image;
+  if (low_contrast_ && options_.clahe_clip_limit > 0) {
+    if (!clahe_)
+      clahe_ = cv::createCLAHE(options_.clahe_clip_limit,
+                               cv::Size(options_.clahe_tiles, options_.clahe_tiles));
+    clahe_->apply(image, *buffer);
+    out = *buffer;
+  } else if (low_contrast_ && options_.contrast_stretch_std > 0) {
+    const double g = std::max(stretch_gain_, 1.0), offset = left_mean * (1 - g);
+    image.convertTo(*buffer, -1, g, offset);
+    out = *buffer;
+  }
+  if (options_.median_filter_px > 1) {
+    cv::Mat filtered;
+    cv::medianBlur(out, filtered, options_.median_filter_px);
+    out = filtered;
+  }
+  if (options_.highpass_sigma_px > 0) out = HighPassFilter(out, options_.highpass_sigma_px);
+  if (options_.local_norm_sigma_px > 0)
+    out = LocalContrastNormalise(out, options_.local_norm_sigma_px, options_.local_norm_floor);
+  return out;
+}
+
 FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const cv::Mat& right,
                                        const std::optional<Eigen::Quaterniond>& cur_from_prev,
                                        bool match_all_stereo) {
@@ -321,8 +346,8 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
     if (timing_) timing_->Add(name, stage.ElapsedSeconds());
     stage.Restart();
   };
-  cv::Mat left_eq, right_eq;
   cv::Scalar left_mean, left_std;  // of the left image, when a contrast option needs them
+  const bool was_low_contrast = low_contrast_;
   if (options_.clahe_clip_limit > 0 || options_.detect_min_eigen > 0 ||
       options_.contrast_stretch_std > 0) {
     cv::meanStdDev(left, left_mean, left_std);
@@ -335,42 +360,30 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
   }
   // Measured low contrast (with clahe_below_std 0, CLAHE on every frame, nothing is measured).
   out.stats.low_contrast = low_contrast_ && options_.clahe_below_std > 0;
-  if (low_contrast_ && options_.clahe_clip_limit > 0) {
-    if (!clahe_)
-      clahe_ = cv::createCLAHE(options_.clahe_clip_limit,
-                               cv::Size(options_.clahe_tiles, options_.clahe_tiles));
-    clahe_->apply(left, left_eq_buffer_);
-    clahe_->apply(right, right_eq_buffer_);
-    left_eq = left_eq_buffer_;
-    right_eq = right_eq_buffer_;
-  } else if (low_contrast_ && options_.contrast_stretch_std > 0) {
+  if (low_contrast_ && options_.clahe_clip_limit <= 0 && options_.contrast_stretch_std > 0) {
     const double want = options_.contrast_stretch_std / std::max(left_std[0], 1.0);
     stretch_gain_ = stretch_gain_ > 0 ? 0.9 * stretch_gain_ + 0.1 * want : want;
-    const double g = std::max(stretch_gain_, 1.0), offset = left_mean[0] * (1 - g);
-    left.convertTo(left_eq_buffer_, -1, g, offset);
-    right.convertTo(right_eq_buffer_, -1, g, offset);
-    left_eq = left_eq_buffer_;
-    right_eq = right_eq_buffer_;
-  } else {
-    left_eq = left;
-    right_eq = right;
   }
-  if (options_.median_filter_px > 1) {
-    cv::Mat l, r;
-    cv::medianBlur(left_eq, l, options_.median_filter_px);
-    cv::medianBlur(right_eq, r, options_.median_filter_px);
-    left_eq = l;
-    right_eq = r;
+  const cv::Mat left_eq = Prepare(left, left_mean[0], &left_eq_buffer_);
+  const cv::Mat right_eq = Prepare(right, left_mean[0], &right_eq_buffer_);
+  // The contrast treatment switched on or off: the previous frame, tracked from as it was
+  // prepared, would no longer look like this one (in a fog bank 143 of 150 tracks failed the
+  // forward-backward check at each switch, 2026-12-05). Its pyramid is built again from its
+  // image prepared as this frame is.
+  const bool treated = options_.clahe_clip_limit > 0 || options_.contrast_stretch_std > 0;
+  if (treated && low_contrast_ != was_low_contrast && !prev_pyramid_.empty() &&
+      !prev_left_.empty()) {
+    cv::Mat prev_eq_buffer;
+    const cv::Mat prev_eq = Prepare(prev_left_, prev_left_mean_, &prev_eq_buffer);
+    KeepIfExclusive(&prev_pyramid_);
+    const int pad = std::max(options_.klt_window_px, options_.stereo_window_px);
+    cv::buildOpticalFlowPyramid(prev_eq, prev_pyramid_, cv::Size(pad, pad),
+                                options_.klt_pyramid_levels);
+    ++out.stats.contrast_switches;
   }
-  if (options_.highpass_sigma_px > 0) {
-    left_eq = HighPassFilter(left_eq, options_.highpass_sigma_px);
-    right_eq = HighPassFilter(right_eq, options_.highpass_sigma_px);
-  }
-  if (options_.local_norm_sigma_px > 0) {
-    left_eq =
-        LocalContrastNormalise(left_eq, options_.local_norm_sigma_px, options_.local_norm_floor);
-    right_eq =
-        LocalContrastNormalise(right_eq, options_.local_norm_sigma_px, options_.local_norm_floor);
+  if (treated && options_.clahe_below_std > 0) {
+    left.copyTo(prev_left_);
+    prev_left_mean_ = left_mean[0];
   }
   // Into the reused buffers: the one before the previous left pyramid, the last right one.
   std::vector<cv::Mat> left_pyramid = std::move(spare_pyramid_);

@@ -144,6 +144,9 @@ struct FrontendStats {
   // The measured low-contrast state (clahe_below_std > 0, and CLAHE, the stretch or the corner
   // check on) of this frame.
   bool low_contrast = false;
+  // 1 when the contrast treatment switched on or off at this frame (the previous frame was then
+  // prepared again to track from).
+  int contrast_switches = 0;
 };
 
 struct FrontendOutput {
@@ -177,6 +180,9 @@ class StereoFrontend {
     std::optional<cv::Point2f> stereo_offset;  // right - left pixel at the last stereo match
     int stereo_failures = 0;                   // failed attempts since the last match
   };
+  // `image` as tracked: the low-contrast treatment in force (CLAHE or the contrast stretch, with
+  // the left image's mean `left_mean`), then the optional filters; into `buffer` when changed.
+  cv::Mat Prepare(const cv::Mat& image, double left_mean, cv::Mat* buffer);
   // New corners in `image` (the left image as tracked; `pyramid`: its KLT pyramid).
   void Detect(const cv::Mat& image, const std::vector<cv::Mat>& pyramid,
               std::vector<Track>* tracks);
@@ -212,9 +218,13 @@ class StereoFrontend {
   // Gyro rotation accumulated since the last keyframe (parallax is measured without it).
   Eigen::Quaterniond cur_from_keyframe_ = Eigen::Quaterniond::Identity();
   bool has_rotation_since_keyframe_ = false;
-  cv::Ptr<cv::CLAHE> clahe_;       // when clahe_clip_limit > 0
-  bool low_contrast_ = false;      // the low-contrast state (clahe_below_std)
-  double stretch_gain_ = 0;        // contrast_stretch_std's current gain (0: none yet)
+  cv::Ptr<cv::CLAHE> clahe_;   // when clahe_clip_limit > 0
+  bool low_contrast_ = false;  // the low-contrast state (clahe_below_std)
+  double stretch_gain_ = 0;    // contrast_stretch_std's current gain (0: none yet)
+  // The previous left image as given and its mean (kept when the contrast treatment can switch,
+  // to prepare it again as the next frame is prepared).
+  cv::Mat prev_left_;
+  double prev_left_mean_ = 0;
   TimingStats* timing_ = nullptr;  // median depth of the last stereo matches
 };
 
