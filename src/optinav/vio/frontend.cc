@@ -367,9 +367,9 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
   const cv::Mat left_eq = Prepare(left, left_mean[0], &left_eq_buffer_);
   const cv::Mat right_eq = Prepare(right, left_mean[0], &right_eq_buffer_);
   // The contrast treatment switched on or off: the previous frame, tracked from as it was
-  // prepared, would no longer look like this one (in a fog bank 143 of 150 tracks failed the
-  // forward-backward check at each switch, 2026-12-05). Its pyramid is built again from its
-  // image prepared as this frame is.
+  // prepared, would no longer look like this one (terrain route, clear, 2026-12-05: 143 of 150
+  // tracks failed the forward-backward check at such a switch). Its pyramid is built again from
+  // its image prepared as this frame is.
   const bool treated = options_.clahe_clip_limit > 0 || options_.contrast_stretch_std > 0;
   if (treated && low_contrast_ != was_low_contrast && !prev_pyramid_.empty() &&
       !prev_left_.empty()) {
