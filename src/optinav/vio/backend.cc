@@ -4,6 +4,7 @@
 #include <cmath>
 #include <map>
 #include <memory>
+#include <numbers>
 
 #include <opencv2/calib3d.hpp>
 
@@ -786,8 +787,8 @@ void SlidingWindowBackend::Optimize() {
     const double* before = states_[k]->pose;
     const double* after = packed_of(before);
     const Eigen::Map<const Eigen::Quaterniond> q0(before + 3), q1(after + 3);
-    stats_.window_shift_deg =
-        std::max(stats_.window_shift_deg, q0.angularDistance(q1.normalized()) * 180.0 / M_PI);
+    stats_.window_shift_deg = std::max(
+        stats_.window_shift_deg, q0.angularDistance(q1.normalized()) * 180.0 / std::numbers::pi);
     stats_.window_shift_m = std::max(
         stats_.window_shift_m,
         (Eigen::Map<const Eigen::Vector3d>(before) - Eigen::Map<const Eigen::Vector3d>(after))

@@ -111,6 +111,7 @@ std::map<std::string, Section> OptionSections(VioOptions& o) {
         {"clahe_clip_limit", &f.clahe_clip_limit},
         {"clahe_tiles", &f.clahe_tiles},
         {"clahe_below_std", &f.clahe_below_std},
+        {"clahe_below_local_std", &f.clahe_below_local_std},
         {"highpass_sigma_px", &f.highpass_sigma_px},
         {"local_norm_sigma_px", &f.local_norm_sigma_px},
         {"local_norm_floor", &f.local_norm_floor},

@@ -24,10 +24,29 @@ cv::Point2f ToCv(const Eigen::Vector2d& p) {
 // reused buffer must never be written while anything else still reads it.
 void KeepIfExclusive(std::vector<cv::Mat>* pyramid) {
   for (cv::Mat& m : *pyramid)
-    if (m.u != nullptr && m.u->refcount > 1) m.release();
+    if (m.u == nullptr || m.u->refcount > 1) m.release();  // external memory, or shared
 }
 
 }  // namespace
+
+double MedianLocalStd(const cv::Mat& grey) {
+  OPTINAV_CHECK(grey.type() == CV_8UC1);
+  cv::Mat f, mean, mean_sq;
+  grey.convertTo(f, CV_32F);
+  cv::boxFilter(f, mean, CV_32F, cv::Size(7, 7));
+  cv::boxFilter(f.mul(f), mean_sq, CV_32F, cv::Size(7, 7));
+  std::vector<float> stds;
+  stds.reserve(static_cast<size_t>((grey.rows / 4 + 1) * (grey.cols / 4 + 1)));
+  for (int y = 0; y < grey.rows; y += 4) {
+    const float* m = mean.ptr<float>(y);
+    const float* m2 = mean_sq.ptr<float>(y);
+    for (int x = 0; x < grey.cols; x += 4)
+      stds.push_back(std::sqrt(std::max(m2[x] - m[x] * m[x], 0.0f)));
+  }
+  if (stds.empty()) return 0;
+  std::nth_element(stds.begin(), stds.begin() + stds.size() / 2, stds.end());
+  return stds[stds.size() / 2];
+}
 
 double IntensityStd(const cv::Mat& grey) {
   OPTINAV_CHECK(grey.type() == CV_8UC1);
@@ -82,6 +101,7 @@ std::string FrontendOptions::Check() const {
   if (!(min_corner_response >= 0)) return "min_corner_response must be >= 0";
   if (!(clahe_clip_limit >= 0)) return "clahe_clip_limit must be >= 0";
   if (!(clahe_below_std >= 0)) return "clahe_below_std must be >= 0";
+  if (!(clahe_below_local_std >= 0)) return "clahe_below_local_std must be >= 0";
   if (!(contrast_stretch_std >= 0)) return "contrast_stretch_std must be >= 0 (0: off)";
   if (!(highpass_sigma_px >= 0)) return "highpass_sigma_px must be >= 0";
   if (!(local_norm_sigma_px >= 0)) return "local_norm_sigma_px must be >= 0";
@@ -354,8 +374,14 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
     if (options_.clahe_below_std <= 0) {
       low_contrast_ = true;
     } else {
-      if (left_std[0] < options_.clahe_below_std) low_contrast_ = true;
-      if (left_std[0] > 1.25 * options_.clahe_below_std) low_contrast_ = false;
+      if (left_std[0] < options_.clahe_below_std) low_global_ = true;
+      if (left_std[0] > 1.25 * options_.clahe_below_std) low_global_ = false;
+      if (options_.clahe_below_local_std > 0) {
+        const double local = MedianLocalStd(left);
+        if (local < options_.clahe_below_local_std) low_local_ = true;
+        if (local > 1.25 * options_.clahe_below_local_std) low_local_ = false;
+      }
+      low_contrast_ = low_global_ || low_local_;
     }
   }
   // Measured low contrast (with clahe_below_std 0, CLAHE on every frame, nothing is measured).
@@ -371,7 +397,7 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
   // tracks failed the forward-backward check at such a switch). Its pyramid is built again from
   // its image prepared as this frame is.
   const bool treated = options_.clahe_clip_limit > 0 || options_.contrast_stretch_std > 0;
-  if (treated && low_contrast_ != was_low_contrast && !prev_pyramid_.empty() &&
+  if (treated && low_contrast_ != was_low_contrast && !tracks_.empty() && !prev_pyramid_.empty() &&
       !prev_left_.empty()) {
     cv::Mat prev_eq_buffer;
     const cv::Mat prev_eq = Prepare(prev_left_, prev_left_mean_, &prev_eq_buffer);

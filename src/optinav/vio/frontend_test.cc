@@ -290,6 +290,37 @@ TEST(Frontend, TracksCarryAcrossContrastTreatmentSwitches) {
   }
 }
 
+// Fog keeps the global std high (a bright sky over a dark road) while it hides the texture: the
+// median local std sees it. The clip's frame, its texture faded to a tenth and laid over a
+// vertical ramp (40 grey levels at the top, 200 at the bottom): the global measure calls it
+// contrasted, clahe_below_local_std low in contrast.
+TEST(Frontend, LocalContrastMeasureSeesFogTheGlobalStdMisses) {
+  const io::EurocDataset ds = OpenMicro();
+  const camera::StereoRig rig = io::ToStereoRig(ds.cam0->calibration, ds.cam1->calibration);
+  const cv::Mat real = cv::imread(ds.cam0->images[0].path, cv::IMREAD_GRAYSCALE);
+  cv::Mat foggy(real.size(), CV_8UC1);
+  for (int y = 0; y < real.rows; ++y)
+    for (int x = 0; x < real.cols; ++x)
+      foggy.at<uint8_t>(y, x) = cv::saturate_cast<uint8_t>(40.0 + 160.0 * y / real.rows +
+                                                           0.1 * (real.at<uint8_t>(y, x) - 128.0));
+  const double real_local = MedianLocalStd(real), foggy_local = MedianLocalStd(foggy);
+  std::printf(
+      "V1_01_micro: global std %.1f, median local std %.2f; faded over a ramp: %.1f, %.2f\n",
+      IntensityStd(real), real_local, IntensityStd(foggy), foggy_local);
+  ASSERT_GT(IntensityStd(foggy), 1.25 * FrontendOptions{}.clahe_below_std);
+  EXPECT_LT(foggy_local, 0.2 * real_local);
+  EXPECT_NEAR(MedianLocalStd(cv::Mat(60, 80, CV_8UC1, cv::Scalar(90))), 0.0, 1e-3);
+  FrontendOptions global, local;
+  local.clahe_below_local_std = 0.5 * real_local;
+  for (const auto& [options, low_on_fog] : {std::pair{global, false}, std::pair{local, true}}) {
+    StereoFrontend frontend(rig, options);
+    EXPECT_FALSE(frontend.Process(1, real, real, std::nullopt, true).stats.low_contrast);
+    EXPECT_EQ(frontend.Process(2, foggy, foggy, std::nullopt, true).stats.low_contrast, low_on_fog);
+  }
+  local.clahe_below_local_std = -1;
+  EXPECT_NE(local.Check(), "");
+}
+
 // Sub-pixel tracking in low contrast: a frame shifted by a fraction of a pixel, both frames at a
 // twentieth of their contrast and quantised to 8 bits (dust leaves texture a grey level or two
 // deep; the renderer adds no noise). The quantisation steps that CLAHE or the stretch amplify do

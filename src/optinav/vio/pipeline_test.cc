@@ -603,6 +603,7 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(file.frontend.clahe_clip_limit, d.frontend.clahe_clip_limit);
   EXPECT_EQ(file.frontend.clahe_tiles, d.frontend.clahe_tiles);
   EXPECT_EQ(file.frontend.clahe_below_std, d.frontend.clahe_below_std);
+  EXPECT_EQ(file.frontend.clahe_below_local_std, d.frontend.clahe_below_local_std);
   EXPECT_EQ(file.frontend.contrast_stretch_std, d.frontend.contrast_stretch_std);
   EXPECT_EQ(file.frontend.min_corner_response, d.frontend.min_corner_response);
   EXPECT_EQ(file.frontend.detect_min_eigen, d.frontend.detect_min_eigen);

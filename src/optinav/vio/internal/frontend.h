@@ -65,6 +65,13 @@ struct FrontendOptions {
   // so clear and foggy frames stay untouched (bit-identical results). The same low-contrast
   // state selects the frames whose new corners detect_min_eigen checks.
   double clahe_below_std = 20.0;
+  // Also low in contrast when the median local intensity std (over 7 x 7 pixel boxes of the left
+  // image, grey levels) is below this (0: off); off again above 1.25 x this. Fog hides texture
+  // without lowering the global std (the sky-to-ground gradient keeps it at 32-37): median local
+  // std at 400x300, clear 3.5 (urban) / 5.5 (terrain), fog 75 % 1.9 / 1.6, fog 100 % 0.9 / 0.2,
+  // dust 100 % 0.5 / 0.1. Off: CLAHE on every frame halved the terrain route's error sum but
+  // moved the urban rows both ways (docs/VIO.md, weather, 2026-12-05 late).
+  double clahe_below_local_std = 0.0;
   // On low-contrast frames with CLAHE off: a global contrast stretch of both images by one gain,
   // so that the left image's intensity standard deviation becomes this (grey levels; 0: off).
   // The gain follows the frames slowly (each frame moves it 10 % of the way), so consecutive
@@ -130,6 +137,9 @@ struct FrontendOptions {
 
 // Standard deviation of the intensities of `grey` (CV_8UC1), grey levels.
 double IntensityStd(const cv::Mat& grey);
+// The median of the intensity std over 7 x 7 pixel boxes of an 8-bit grey image (grey levels;
+// sampled every 4th pixel in each direction).
+double MedianLocalStd(const cv::Mat& grey);
 
 // `grey` (CV_8UC1) minus its Gaussian blur of `sigma_px`, plus 128 (saturated to 8 bits).
 cv::Mat HighPassFilter(const cv::Mat& grey, double sigma_px);
@@ -219,8 +229,9 @@ class StereoFrontend {
   Eigen::Quaterniond cur_from_keyframe_ = Eigen::Quaterniond::Identity();
   bool has_rotation_since_keyframe_ = false;
   cv::Ptr<cv::CLAHE> clahe_;   // when clahe_clip_limit > 0
-  bool low_contrast_ = false;  // the low-contrast state (clahe_below_std)
-  double stretch_gain_ = 0;    // contrast_stretch_std's current gain (0: none yet)
+  bool low_contrast_ = false;  // the low-contrast state (clahe_below_std or the local one)
+  bool low_global_ = false, low_local_ = false;  // each measure's own state (hysteresis)
+  double stretch_gain_ = 0;  // contrast_stretch_std's current gain (0: none yet)
   // The previous left image as given and its mean (kept when the contrast treatment can switch,
   // to prepare it again as the next frame is prepared).
   cv::Mat prev_left_;
