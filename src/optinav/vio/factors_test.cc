@@ -131,7 +131,9 @@ TEST(Reprojection, FixedPoseIsTheReprojectionWithThePoseHeld) {
     ASSERT_TRUE(fixed->Evaluate(parameters, residual.data(), nullptr));
     EXPECT_EQ(residual, a.residual);
     in_front += p_in_cam.z() > 0 ? 1 : 0;
-    if (p_in_cam.z() > 0) EXPECT_GT(a.d_point.cwiseAbs().maxCoeff(), 0.0);
+    if (p_in_cam.z() > 0) {
+      EXPECT_GT(a.d_point.cwiseAbs().maxCoeff(), 0.0);
+    }
   }
   EXPECT_EQ(in_front, 3);
 }

@@ -285,7 +285,9 @@ TEST(Frontend, TracksCarryAcrossContrastTreatmentSwitches) {
                   stats.rejected_fb);
       EXPECT_EQ(stats.low_contrast, i < 3 || i > 5) << name << " frame " << i;
       EXPECT_EQ(stats.contrast_switches, switches[i] ? 1 : 0) << name << " frame " << i;
-      if (i > 0) EXPECT_GT(stats.tracked, 4 * stats.rejected_fb) << name << " frame " << i;
+      if (i > 0) {
+        EXPECT_GT(stats.tracked, 4 * stats.rejected_fb) << name << " frame " << i;
+      }
     }
   }
 }
