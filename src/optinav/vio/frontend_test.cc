@@ -250,7 +250,7 @@ TEST(Frontend, GlobalContrastStretchOnLowContrastFrames) {
 // across each switch: the previous frame is prepared again as the new one is. Before, KLT tracked
 // from a plain frame into a CLAHE one, and nearly every track failed the forward-backward check
 // (terrain route, clear: 143 of 150 at 33.75 s, 116 of 125 at 34.50 s; docs/VIO.md, weather,
-// 2026-12-05 evening).
+// 2026-12-05 late).
 TEST(Frontend, TracksCarryAcrossContrastTreatmentSwitches) {
   const io::EurocDataset ds = OpenMicro();
   const camera::StereoRig rig = io::ToStereoRig(ds.cam0->calibration, ds.cam1->calibration);
