@@ -48,6 +48,30 @@ double MedianLocalStd(const cv::Mat& grey) {
   return stds[stds.size() / 2];
 }
 
+double CornerIsotropy(const cv::Mat& grey, cv::Point2f p, int half) {
+  OPTINAV_CHECK(grey.type() == CV_8UC1 && half >= 1);
+  const int cx = cvRound(p.x), cy = cvRound(p.y);
+  const int x0 = std::max(1, cx - half), x1 = std::min(grey.cols - 2, cx + half);
+  const int y0 = std::max(1, cy - half), y1 = std::min(grey.rows - 2, cy + half);
+  double xx = 0, xy = 0, yy = 0;
+  for (int y = y0; y <= y1; ++y) {
+    const uint8_t* up = grey.ptr<uint8_t>(y - 1);
+    const uint8_t* row = grey.ptr<uint8_t>(y);
+    const uint8_t* down = grey.ptr<uint8_t>(y + 1);
+    for (int x = x0; x <= x1; ++x) {
+      const double gx = row[x + 1] - row[x - 1], gy = down[x] - up[x];
+      xx += gx * gx;
+      xy += gx * gy;
+      yy += gy * gy;
+    }
+  }
+  // Eigenvalues of [[xx, xy], [xy, yy]].
+  const double mean = 0.5 * (xx + yy);
+  const double root = std::sqrt(0.25 * (xx - yy) * (xx - yy) + xy * xy);
+  const double large = mean + root;
+  return large > 0 ? std::max(0.0, mean - root) / large : 0.0;
+}
+
 double IntensityStd(const cv::Mat& grey) {
   OPTINAV_CHECK(grey.type() == CV_8UC1);
   cv::Scalar mean, std;
@@ -110,6 +134,8 @@ std::string FrontendOptions::Check() const {
       (median_filter_px > 1 && median_filter_px % 2 == 0))
     return "median_filter_px must be 0, 1, 3, 5 or 7";
   if (!(detect_min_eigen >= 0)) return "detect_min_eigen must be >= 0";
+  if (!(min_corner_isotropy >= 0 && min_corner_isotropy < 1))
+    return "min_corner_isotropy must be in [0, 1)";
   if (corner_block_px < 3 || corner_block_px > 15) return "corner_block_px must be 3..15";
   if (clahe_tiles < 1 || clahe_tiles > 64) return "clahe_tiles must be 1..64";
   if (!(keyframe_max_interval_s > 0)) return "keyframe_max_interval_s must be > 0";
@@ -171,6 +197,8 @@ void StereoFrontend::Detect(const cv::Mat& image, const std::vector<cv::Mat>& py
     cv::circle(mask, t.pixel, static_cast<int>(options_.min_distance_px), cv::Scalar(0), -1);
   }
   const bool check = options_.detect_min_eigen > 0 && low_contrast_;
+  const bool isotropy = options_.min_corner_isotropy > 0 &&
+                        (low_contrast_ || !options_.fog_treatment_low_contrast_only);
   int budget = options_.max_features - static_cast<int>(tracks->size());
   std::vector<cv::Point2f> corners, same;
   std::vector<uchar> status;
@@ -184,7 +212,7 @@ void StereoFrontend::Detect(const cv::Mat& image, const std::vector<cv::Mat>& py
       const cv::Rect cell(cx * cell_w, cy * cell_h, cell_w, cell_h);
       corners.clear();
       // With the check, spare candidates replace the corners KLT could not track.
-      cv::goodFeaturesToTrack(image(cell), corners, check ? 2 * want + 2 : want,
+      cv::goodFeaturesToTrack(image(cell), corners, check || isotropy ? 2 * want + 2 : want,
                               options_.quality_level, options_.min_distance_px, mask(cell),
                               options_.corner_block_px);
       for (cv::Point2f& c : corners)
@@ -201,12 +229,13 @@ void StereoFrontend::Detect(const cv::Mat& image, const std::vector<cv::Mat>& py
       int taken = 0;
       for (size_t i = 0; i < corners.size() && taken < want; ++i) {
         const cv::Point2f& p = corners[i];
-        if (check) {
-          if (min_eigen[i] < options_.detect_min_eigen) continue;
-          // As across cells, a spare on the rim of a taken corner's circle (at exactly
-          // min_distance: goodFeaturesToTrack keeps those) is left out.
-          if (mask.at<uchar>(cv::Point(p)) == 0) continue;
-        }
+        if (check && min_eigen[i] < options_.detect_min_eigen) continue;
+        if (isotropy &&
+            CornerIsotropy(image, p, options_.klt_window_px / 2) < options_.min_corner_isotropy)
+          continue;
+        // As across cells, a spare on the rim of a taken corner's circle (at exactly
+        // min_distance: goodFeaturesToTrack keeps those) is left out.
+        if ((check || isotropy) && mask.at<uchar>(cv::Point(p)) == 0) continue;
         tracks->push_back({next_id_++, p, std::nullopt, 0});
         cv::circle(mask, p, static_cast<int>(options_.min_distance_px), cv::Scalar(0), -1);
         --budget;
@@ -347,7 +376,8 @@ cv::Mat StereoFrontend::Prepare(const cv::Mat& image, double left_mean, cv::Mat*
     out = filtered;
   }
   if (options_.highpass_sigma_px > 0) out = HighPassFilter(out, options_.highpass_sigma_px);
-  if (options_.local_norm_sigma_px > 0)
+  if (options_.local_norm_sigma_px > 0 &&
+      (low_contrast_ || !options_.fog_treatment_low_contrast_only))
     out = LocalContrastNormalise(out, options_.local_norm_sigma_px, options_.local_norm_floor);
   return out;
 }
@@ -396,7 +426,9 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
   // prepared, would no longer look like this one (terrain route, clear, 2026-12-05: 143 of 150
   // tracks failed the forward-backward check at such a switch). Its pyramid is built again from
   // its image prepared as this frame is.
-  const bool treated = options_.clahe_clip_limit > 0 || options_.contrast_stretch_std > 0;
+  const bool treated =
+      options_.clahe_clip_limit > 0 || options_.contrast_stretch_std > 0 ||
+      (options_.fog_treatment_low_contrast_only && options_.local_norm_sigma_px > 0);
   if (treated && low_contrast_ != was_low_contrast && !tracks_.empty() && !prev_pyramid_.empty() &&
       !prev_left_.empty()) {
     cv::Mat prev_eq_buffer;

@@ -610,6 +610,9 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(file.frontend.highpass_sigma_px, d.frontend.highpass_sigma_px);
   EXPECT_EQ(file.frontend.local_norm_sigma_px, d.frontend.local_norm_sigma_px);
   EXPECT_EQ(file.frontend.local_norm_floor, d.frontend.local_norm_floor);
+  EXPECT_EQ(file.frontend.min_corner_isotropy, d.frontend.min_corner_isotropy);
+  EXPECT_EQ(file.frontend.fog_treatment_low_contrast_only,
+            d.frontend.fog_treatment_low_contrast_only);
   EXPECT_EQ(file.frontend.median_filter_px, d.frontend.median_filter_px);
   EXPECT_EQ(file.frontend.corner_block_px, d.frontend.corner_block_px);
   EXPECT_EQ(file.backend.window_keyframes, d.backend.window_keyframes);

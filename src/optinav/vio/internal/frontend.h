@@ -96,6 +96,10 @@ struct FrontendOptions {
   // docs/VIO.md, weather).
   double local_norm_sigma_px = 0.0;
   double local_norm_floor = 2.0;  // grey levels added to the local std (flat areas stay flat)
+  // The local contrast normalisation (local_norm_sigma_px) and the corner isotropy check
+  // (min_corner_isotropy) only on the frames the low-contrast rule selects (clahe_below_std,
+  // clahe_below_local_std), as CLAHE: fog's treatment, kept off clear frames.
+  bool fog_treatment_low_contrast_only = false;
   // Median filter of both images before detection and tracking (odd kernel side; 0 or 1: off).
   // Removes particles of a pixel or two (dust, distant snow and rain) that would otherwise be
   // the strongest corners of a hazy image. Off: on 100 % dust 3 px helped less than CLAHE and
@@ -113,6 +117,13 @@ struct FrontendOptions {
   // m). On every frame it made fog worse (docs/VIO.md, 2026-11-29: corners KLT can track), so
   // normal-contrast frames (clear, fog, snow: bit-identical results) are not checked.
   double detect_min_eigen = 3e-4;
+  // A new corner is kept only when its gradient matrix over the KLT window is this isotropic:
+  // smaller over larger eigenvalue (0: no check). A corner of the 3x3 Shi-Tomasi block can be
+  // an edge over the KLT window (a kerb, a road edge fading into fog); KLT cannot see motion
+  // along an edge and reports the start guess, no motion, which pulls the rotation estimate
+  // toward zero in turns (docs/VIO.md, weather, "2026-12-05 (last)"). Spare candidates replace
+  // those dropped.
+  double min_corner_isotropy = 0.0;
   int corner_block_px = 3;  // Shi-Tomasi block size (larger: less sensitive to tiny dots)
   double keyframe_max_interval_s = 0.5;
   // Corners detected at a keyframe join its reference set (the denominator of the tracked-ratio
@@ -140,6 +151,11 @@ double IntensityStd(const cv::Mat& grey);
 // The median of the intensity std over 7 x 7 pixel boxes of an 8-bit grey image (grey levels;
 // sampled every 4th pixel in each direction).
 double MedianLocalStd(const cv::Mat& grey);
+// How isotropic the texture around `p` is in an 8-bit grey image: the smaller over the larger
+// eigenvalue of the gradient matrix (central differences) over the (2 half + 1)^2 window
+// centred on p, clipped to the image. 1 for a corner with gradients in all directions, 0 for a
+// straight edge or a flat window.
+double CornerIsotropy(const cv::Mat& grey, cv::Point2f p, int half);
 
 // `grey` (CV_8UC1) minus its Gaussian blur of `sigma_px`, plus 128 (saturated to 8 bits).
 cv::Mat HighPassFilter(const cv::Mat& grey, double sigma_px);
