@@ -197,8 +197,7 @@ void StereoFrontend::Detect(const cv::Mat& image, const std::vector<cv::Mat>& py
     cv::circle(mask, t.pixel, static_cast<int>(options_.min_distance_px), cv::Scalar(0), -1);
   }
   const bool check = options_.detect_min_eigen > 0 && low_contrast_;
-  const bool isotropy = options_.min_corner_isotropy > 0 &&
-                        (low_contrast_ || !options_.fog_treatment_low_contrast_only);
+  const bool isotropy = options_.min_corner_isotropy > 0 && FogTreatment();
   int budget = options_.max_features - static_cast<int>(tracks->size());
   std::vector<cv::Point2f> corners, same;
   std::vector<uchar> status;
@@ -376,8 +375,7 @@ cv::Mat StereoFrontend::Prepare(const cv::Mat& image, double left_mean, cv::Mat*
     out = filtered;
   }
   if (options_.highpass_sigma_px > 0) out = HighPassFilter(out, options_.highpass_sigma_px);
-  if (options_.local_norm_sigma_px > 0 &&
-      (low_contrast_ || !options_.fog_treatment_low_contrast_only))
+  if (options_.local_norm_sigma_px > 0 && FogTreatment())
     out = LocalContrastNormalise(out, options_.local_norm_sigma_px, options_.local_norm_floor);
   return out;
 }
@@ -399,7 +397,7 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
   cv::Scalar left_mean, left_std;  // of the left image, when a contrast option needs them
   const bool was_low_contrast = low_contrast_;
   if (options_.clahe_clip_limit > 0 || options_.detect_min_eigen > 0 ||
-      options_.contrast_stretch_std > 0) {
+      options_.contrast_stretch_std > 0 || options_.fog_treatment_low_contrast_only) {
     cv::meanStdDev(left, left_mean, left_std);
     if (options_.clahe_below_std <= 0) {
       low_contrast_ = true;

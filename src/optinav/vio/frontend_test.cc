@@ -660,6 +660,14 @@ TEST(Frontend, FogTreatmentOnlyOnLowContrastFrames) {
   EXPECT_NE(faint_gated, run(none, faint).first);
   EXPECT_GT(clear_gated.size(), 50u);
   EXPECT_GT(faint_gated.size(), 50u);
+  // The gate measures the contrast itself: without CLAHE and the trackability check (the other
+  // settings that measure it) the faint frames are still low in contrast and treated.
+  FrontendOptions bare = gated, bare_always = always;
+  bare.clahe_clip_limit = bare.detect_min_eigen = 0;
+  bare_always.clahe_clip_limit = bare_always.detect_min_eigen = 0;
+  const auto [faint_bare, faint_bare_low] = run(bare, faint);
+  EXPECT_TRUE(faint_bare_low);
+  EXPECT_EQ(faint_bare, run(bare_always, faint).first);
 }
 
 TEST(Frontend, LocalNormalisationIsAffineInvariant) {

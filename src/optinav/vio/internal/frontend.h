@@ -247,6 +247,8 @@ class StereoFrontend {
   bool has_rotation_since_keyframe_ = false;
   cv::Ptr<cv::CLAHE> clahe_;   // when clahe_clip_limit > 0
   bool low_contrast_ = false;  // the low-contrast state (clahe_below_std or the local one)
+  // Whether this frame gets the fog treatment (local normalisation, isotropy check).
+  bool FogTreatment() const { return low_contrast_ || !options_.fog_treatment_low_contrast_only; }
   bool low_global_ = false, low_local_ = false;  // each measure's own state (hysteresis)
   double stretch_gain_ = 0;  // contrast_stretch_std's current gain (0: none yet)
   // The previous left image as given and its mean (kept when the contrast treatment can switch,
