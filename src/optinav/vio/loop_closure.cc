@@ -26,6 +26,11 @@ std::string LoopClosureOptions::Check() const {
   if (orb_features < 50) return "loop_closure.orb_features must be >= 50";
   if (orb_fast_threshold < 1 || orb_fast_threshold > 255)
     return "loop_closure.orb_fast_threshold must be 1..255";
+  if (orb_retry_below_features < 0) return "loop_closure.orb_retry_below_features must be >= 0";
+  if (orb_retry_fast_threshold < 1 || orb_retry_fast_threshold > 255)
+    return "loop_closure.orb_retry_fast_threshold must be 1..255";
+  if (!(orb_retry_clahe_clip >= 0) || orb_retry_clahe_tiles < 1 || orb_retry_clahe_tiles > 64)
+    return "loop_closure.orb_retry_clahe_clip must be >= 0 and orb_retry_clahe_tiles 1..64";
   if (!(stereo_epipolar_px > 0) || !(pnp_px > 0))
     return "loop_closure pixel thresholds must be > 0";
   if (!(max_depth_baselines > 1)) return "loop_closure.max_depth_baselines must be > 1";
@@ -198,11 +203,18 @@ LoopCloser::LoopCloser(const camera::StereoRig& rig, const Rigid3d& body_from_ca
   if (const std::string e = options.Check(); !e.empty()) throw Error(e, {.field = "loop_closure"});
   orb_ = cv::ORB::create(options.orb_features, 1.2f, 8, 31, 0, 2, cv::ORB::HARRIS_SCORE, 31,
                          options.orb_fast_threshold);
+  orb_retry_ = cv::ORB::create(options.orb_features, 1.2f, 8, 31, 0, 2, cv::ORB::HARRIS_SCORE, 31,
+                               options.orb_retry_fast_threshold);
+  if (options.orb_retry_clahe_clip > 0)
+    retry_clahe_ =
+        cv::createCLAHE(options.orb_retry_clahe_clip,
+                        cv::Size(options.orb_retry_clahe_tiles, options.orb_retry_clahe_tiles));
   essential_ = rig.Essential();
 }
 
-LoopCloser::Keyframe LoopCloser::Describe(const StateEstimate& state, const cv::Mat& left,
-                                          const cv::Mat& right) const {
+LoopCloser::Keyframe LoopCloser::Describe(const StateEstimate& state, const cv::Mat& raw_left,
+                                          const cv::Mat& raw_right) const {
+  cv::Mat left = raw_left, right = raw_right;
   Keyframe kf;
   kf.t_ns = state.t_ns;
   kf.track = track_;
@@ -211,6 +223,20 @@ LoopCloser::Keyframe LoopCloser::Describe(const StateEstimate& state, const cv::
   cv::Mat dl;
   Timer timer;
   orb_->detectAndCompute(left, cv::noArray(), kl, dl);
+  const bool faded = static_cast<int>(kl.size()) < options_.orb_retry_below_features;
+  if (faded) {
+    // A faded keyframe (fog, dust): described again with its contrast restored, both images
+    // alike so that the stereo match below sees the same appearance.
+    if (retry_clahe_) {
+      cv::Mat eq_left, eq_right;
+      retry_clahe_->apply(raw_left, eq_left);
+      retry_clahe_->apply(raw_right, eq_right);
+      left = eq_left;
+      right = eq_right;
+    }
+    kl.clear();
+    orb_retry_->detectAndCompute(left, cv::noArray(), kl, dl);
+  }
   if (timing_) timing_->Add("loop_closure.orb", timer.ElapsedSeconds());
   timer.Restart();
   kf.descriptors = dl;
@@ -243,8 +269,8 @@ LoopCloser::Keyframe LoopCloser::Describe(const StateEstimate& state, const cv::
     kf.point_descriptors.push_back(dl.row(static_cast<int>(i)));
   }
   if (timing_) timing_->Add("loop_closure.stereo", timer.ElapsedSeconds());
-  spdlog::debug("vio: loop keyframe {:.3f} s: {} ORB features, {} stereo points", kf.t_ns * 1e-9,
-                kl.size(), kf.points.size());
+  spdlog::debug("vio: loop keyframe {:.3f} s: {} ORB features, {} stereo points{}", kf.t_ns * 1e-9,
+                kl.size(), kf.points.size(), faded ? " (faded: described again)" : "");
   return kf;
 }
 

@@ -656,6 +656,10 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(fl.stereo_imu, dl.stereo_imu);
   EXPECT_EQ(fl.orb_features, dl.orb_features);
   EXPECT_EQ(fl.orb_fast_threshold, dl.orb_fast_threshold);
+  EXPECT_EQ(fl.orb_retry_below_features, dl.orb_retry_below_features);
+  EXPECT_EQ(fl.orb_retry_clahe_clip, dl.orb_retry_clahe_clip);
+  EXPECT_EQ(fl.orb_retry_clahe_tiles, dl.orb_retry_clahe_tiles);
+  EXPECT_EQ(fl.orb_retry_fast_threshold, dl.orb_retry_fast_threshold);
   EXPECT_EQ(fl.stereo_epipolar_px, dl.stereo_epipolar_px);
   EXPECT_EQ(fl.max_depth_baselines, dl.max_depth_baselines);
   EXPECT_EQ(fl.min_separation_s, dl.min_separation_s);
