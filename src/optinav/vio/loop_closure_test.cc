@@ -468,8 +468,9 @@ TEST(LoopClosure, SquareFlightClosesItsLoop) {
   options.vio.mode = VioMode::kStereo;
   // Without the anchored observations (the stereo-only default since 2026-12-04 night), as
   // before. Measured 2026-12-05 on the renderer with trilinear texture sampling: odometry 0.327 m
-  // mean, 0.392 m at the end; corrected 0.239 / 0.079 m; worst loop 0.106 m. With the anchors:
-  // 0.442 / 0.887 m -> 0.210 / 0.086 m, but one loop 0.322 m off the truth. Most of this
+  // mean, 0.392 m at the end; corrected 0.239 / 0.079 m; worst loop 0.106 m (2026-12-06, with
+  // the faded-keyframe retry, which some of these keyframes get: 0.237 / 0.065 m). With the
+  // anchors: 0.442 / 0.887 m -> 0.210 / 0.086 m, but one loop 0.322 m off the truth. Most of this
   // odometry's error mid-route is height (-0.5 m at 4 m, on the third side) that it takes back
   // by itself before the loops: loops fix what has accumulated where they close, so the check is
   // the end (a quarter) and the mean must not get worse. On the old renderer (nearest mip level)
@@ -499,9 +500,9 @@ TEST(LoopClosure, SquareFlightInDustClosesItsLoopOnFadedKeyframes) {
   // The same flight in 100 % dust (the simulator's haze and particles). ORB's FAST threshold of
   // 20 finds 1-324 features per keyframe (median 42; clear: hundreds to 1,400), too few for a
   // loop to verify. Keyframes under loop_closure.orb_retry_below_features (500) are described
-  // again after CLAHE: 148-1587 (median 906). Measured 2026-12-06: odometry 0.601 m mean,
-  // 2.168 m at the end; with the retry 24 loops (worst 0.118 m off the truth), 0.151 / 0.048 m
-  // corrected; without it no loop.
+  // again after CLAHE at FAST threshold 10. Measured 2026-12-06: odometry 0.601 m mean, 2.168 m
+  // at the end; with the retry 22 loops (worst 0.149 m off the truth), 0.187 / 0.081 m corrected
+  // (at threshold 20: 24 loops, 0.151 / 0.048 m); without it no loop.
   const std::string dir = SimulateSquare("dust:100");
   VioRunOptions options;
   options.vio.mode = VioMode::kStereo;

@@ -66,14 +66,16 @@ struct LoopClosureOptions {
   // Faded keyframes: when ORB finds fewer than this many features in the left image (0: never),
   // the keyframe is described again on both images after CLAHE (orb_retry_clahe_clip, over
   // orb_retry_clahe_tiles^2 tiles; 0: the raw images) with FAST threshold
-  // orb_retry_fast_threshold. Urban car route at 400x300: clear keyframes keep 841-1584
-  // features and are never retried; fog 75 % keeps 86-366 (576-1286 after CLAHE), fog 100 %
-  // 16-188 (288-601). Urban fog 75 %, stereo: no loop and 7.74 m mean error before, 45 loops and
-  // 1.42 m with it (docs/VIO.md, "2026-12-06").
+  // orb_retry_fast_threshold (ORB-SLAM's detector likewise falls back from 20 to 7 in cells
+  // without corners). Urban car route at 400x300: clear keyframes keep 841-1584 features and are
+  // never retried; fog 75 % keeps 86-366 (1220-1738 after CLAHE at 10), fog 100 % 16-188
+  // (711-1184), dust 100 % 80-303 (362-661). Urban fog 75 %, stereo: no loop and 7.74 m mean
+  // error before, 1.52 m after; fog 100 %, stereo-imu: no loop and 1.32 m, 0.39 m after (the
+  // retry at threshold 20 closes no loop there; docs/VIO.md, "2026-12-06").
   int orb_retry_below_features = 500;
   double orb_retry_clahe_clip = 2.0;
   int orb_retry_clahe_tiles = 8;
-  int orb_retry_fast_threshold = 20;
+  int orb_retry_fast_threshold = 10;
   double stereo_epipolar_px = 1.5;     // left-right match: distance to the epipolar line
   double max_depth_baselines = 100.0;  // triangulated points farther than this x baseline dropped
   double min_separation_s = 15.0;      // a candidate is at least this old ...
