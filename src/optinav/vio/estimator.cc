@@ -173,6 +173,7 @@ std::map<std::string, Section> OptionSections(VioOptions& o) {
         {"orb_features", &l.orb_features},
         {"orb_fast_threshold", &l.orb_fast_threshold},
         {"orb_retry_below_features", &l.orb_retry_below_features},
+        {"orb_retry_stereo_imu", &l.orb_retry_stereo_imu},
         {"orb_retry_clahe_clip", &l.orb_retry_clahe_clip},
         {"orb_retry_clahe_tiles", &l.orb_retry_clahe_tiles},
         {"orb_retry_fast_threshold", &l.orb_retry_fast_threshold},

@@ -223,7 +223,8 @@ LoopCloser::Keyframe LoopCloser::Describe(const StateEstimate& state, const cv::
   cv::Mat dl;
   Timer timer;
   orb_->detectAndCompute(left, cv::noArray(), kl, dl);
-  const bool faded = static_cast<int>(kl.size()) < options_.orb_retry_below_features;
+  const bool retry = !gravity_aligned_ || options_.orb_retry_stereo_imu;
+  const bool faded = retry && static_cast<int>(kl.size()) < options_.orb_retry_below_features;
   if (faded) {
     // A faded keyframe (fog, dust): described again with its contrast restored, both images
     // alike so that the stereo match below sees the same appearance.

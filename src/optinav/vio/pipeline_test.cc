@@ -657,6 +657,7 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(fl.orb_features, dl.orb_features);
   EXPECT_EQ(fl.orb_fast_threshold, dl.orb_fast_threshold);
   EXPECT_EQ(fl.orb_retry_below_features, dl.orb_retry_below_features);
+  EXPECT_EQ(fl.orb_retry_stereo_imu, dl.orb_retry_stereo_imu);
   EXPECT_EQ(fl.orb_retry_clahe_clip, dl.orb_retry_clahe_clip);
   EXPECT_EQ(fl.orb_retry_clahe_tiles, dl.orb_retry_clahe_tiles);
   EXPECT_EQ(fl.orb_retry_fast_threshold, dl.orb_retry_fast_threshold);
