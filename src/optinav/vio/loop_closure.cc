@@ -201,10 +201,13 @@ LoopCloser::LoopCloser(const camera::StereoRig& rig, const Rigid3d& body_from_ca
       options_(options),
       gravity_aligned_(gravity_aligned) {
   if (const std::string e = options.Check(); !e.empty()) throw Error(e, {.field = "loop_closure"});
-  orb_ = cv::ORB::create(options.orb_features, 1.2f, 8, 31, 0, 2, cv::ORB::HARRIS_SCORE, 31,
-                         options.orb_fast_threshold);
-  orb_retry_ = cv::ORB::create(options.orb_features, 1.2f, 8, 31, 0, 2, cv::ORB::HARRIS_SCORE, 31,
-                               options.orb_retry_fast_threshold);
+  // The same detector twice, differing in the FAST threshold only.
+  const auto orb = [&](int fast_threshold) {
+    return cv::ORB::create(options.orb_features, 1.2f, 8, 31, 0, 2, cv::ORB::HARRIS_SCORE, 31,
+                           fast_threshold);
+  };
+  orb_ = orb(options.orb_fast_threshold);
+  orb_retry_ = orb(options.orb_retry_fast_threshold);
   if (options.orb_retry_clahe_clip > 0)
     retry_clahe_ =
         cv::createCLAHE(options.orb_retry_clahe_clip,
