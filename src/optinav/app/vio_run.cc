@@ -426,6 +426,11 @@ nlohmann::json VioStatsJson(const VioRunReport& report) {
                      {"sigma_m", l.sigma_m},
                      {"sigma_rad", l.sigma_rad}});
   j["loops"] = loops;
+  if (r.loop_closure_ran) {
+    j["loop_keyframes"] = r.loop_keyframes;
+    j["loop_faded_keyframes"] = r.loop_faded_keyframes;
+    j["loops_unsupported"] = r.loops_unsupported;
+  }
   if (!r.gnss_stats.received) return j;
   const vio::GnssFusionStats& g = r.gnss_stats;
   j["gnss"] = {{"received", g.received},

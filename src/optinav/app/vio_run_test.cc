@@ -100,6 +100,12 @@ TEST_F(VioRunTest, StereoInertialWritesTrajectoriesAndStats) {
     EXPECT_TRUE(j.contains(key)) << key;
   EXPECT_FALSE(j.contains("gnss"));
   EXPECT_EQ(j["poses"], r.run.estimates.size());
+  ASSERT_TRUE(r.run.loop_closure_ran);  // stereo-imu: by default
+  EXPECT_EQ(j["loop_keyframes"], r.run.loop_keyframes);
+  EXPECT_GT(r.run.loop_keyframes, 0u);
+  // Clear weather, and the retry is off with the IMU by default (orb_retry_stereo_imu).
+  EXPECT_EQ(j["loop_faded_keyframes"], 0);
+  EXPECT_EQ(j["loops_unsupported"], r.run.loops_unsupported);
   EXPECT_EQ(j["frame"], "world");
   EXPECT_EQ(j["vehicle"], "free");  // auto on a drone route
   EXPECT_TRUE(j["timing_per_frame"].contains("total"));

@@ -240,6 +240,7 @@ LoopCloser::Keyframe LoopCloser::Describe(const StateEstimate& state, const cv::
     }
     kl.clear();
     orb_retry_->detectAndCompute(left, cv::noArray(), kl, dl);
+    kf.faded = true;
   }
   if (timing_) timing_->Add("loop_closure.orb", timer.ElapsedSeconds());
   timer.Restart();
@@ -437,6 +438,7 @@ bool LoopCloser::Match(const Keyframe& candidate, const Keyframe& current, const
 bool LoopCloser::AddKeyframe(const StateEstimate& state, const cv::Mat& left,
                              const cv::Mat& right) {
   Keyframe kf = Describe(state, left, right);
+  if (kf.faded) ++faded_;
   spdlog::trace("loop-keyframe {} {:.6f} {:.6f} {:.6f} {:.9f} {:.9f} {:.9f} {:.9f}", kf.t_ns,
                 kf.odometry.translation.x(), kf.odometry.translation.y(),
                 kf.odometry.translation.z(), kf.odometry.rotation.x(), kf.odometry.rotation.y(),

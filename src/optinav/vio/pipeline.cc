@@ -213,6 +213,9 @@ VioRunResult RunOnPairs(const camera::StereoRig& rig, const Rigid3d& body_from_c
   if (closer) {
     result.loop_closure_ran = true;
     result.loops = closer->loops();
+    result.loop_keyframes = closer->keyframes();
+    result.loop_faded_keyframes = closer->faded_keyframes();
+    result.loops_unsupported = closer->unsupported_loops();
     if (!result.loops.empty()) {
       result.odometry = result.estimates;
       for (FrameEstimate& e : result.estimates) {

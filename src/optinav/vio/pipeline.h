@@ -71,6 +71,9 @@ struct VioRunResult {
   // `odometry` holds the estimates before the correction (empty when loop closure did not run).
   bool loop_closure_ran = false;
   std::vector<LoopEdge> loops;
+  // The closer's keyframes, those of them described again as faded (LoopCloser::faded_keyframes),
+  // and the verified loops it dropped for want of support (LoopCloser::unsupported_loops).
+  size_t loop_keyframes = 0, loop_faded_keyframes = 0, loops_unsupported = 0;
   std::vector<FrameEstimate> odometry;
   // With GNSS.
   std::vector<RejectedGnss> gnss_rejected;

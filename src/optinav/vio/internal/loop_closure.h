@@ -213,6 +213,8 @@ class LoopCloser {
   const std::vector<LoopEdge>& loops() const { return loops_; }
   // Verified loops dropped because no other loop supported them (LoopClosureOptions::support_*).
   size_t unsupported_loops() const { return unsupported_; }
+  // Keyframes described again after CLAHE (LoopClosureOptions::orb_retry_*): faded by fog or dust.
+  size_t faded_keyframes() const { return faded_; }
   // Records sub-stage times (loop_closure.orb, .stereo) when set.
   void set_timing(TimingStats* timing) { timing_ = timing; }
   size_t keyframes() const { return keyframes_.size(); }
@@ -228,6 +230,7 @@ class LoopCloser {
     std::vector<Eigen::Vector2d> normalized;  // left features, undistorted normalized
     cv::Mat point_descriptors;                // left features with a stereo point
     std::vector<Eigen::Vector3d> points;      // in the left camera frame
+    bool faded = false;                       // described again (orb_retry_*)
   };
   Keyframe Describe(const StateEstimate& state, const cv::Mat& left, const cv::Mat& right) const;
   // The relative pose cand_body_from_cur_body from matches, or false.
@@ -271,6 +274,7 @@ class LoopCloser {
   };
   std::vector<PendingLoop> pending_;  // verified, waiting for the next solve or support
   size_t unsupported_ = 0;
+  size_t faded_ = 0;
   std::optional<int64_t> last_solve_ns_;  // of the track
   TimingStats* timing_ = nullptr;
   int track_ = 0;
