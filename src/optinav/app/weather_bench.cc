@@ -127,7 +127,7 @@ sim::SimulationOptions SimOptions(const Sequence& s, const WeatherBenchOptions& 
 
 // True when the folder holds a complete rendering of these options: the completion marker exists
 // (written last: a folder without it is an interrupted run) and names the same world, weather,
-// seed and scale.
+// seed and scale, with moving particles (not `sim --particles-still`).
 bool CompleteRendering(const Sequence& s, const WeatherBenchOptions& o) {
   // Missing, unreadable or by another renderer version: rendered again.
   if (!sim::IsCurrentRendering(s.dir)) return false;
@@ -136,7 +136,8 @@ bool CompleteRendering(const Sequence& s, const WeatherBenchOptions& o) {
     const nlohmann::json j = nlohmann::json::parse(io::ReadFileToString(marker.string()));
     return j.at("world") == WeatherBenchWorldName(s.world) && j.at("route") == "car" &&
            j.at("weather") == s.condition.ToString() && j.at("seed") == s.seed &&
-           j.at("format") == "euroc" && std::abs(j.at("scale").get<double>() - o.scale) < 1e-9;
+           j.at("format") == "euroc" && std::abs(j.at("scale").get<double>() - o.scale) < 1e-9 &&
+           !j.value("particles_still", false);
   } catch (const std::exception& e) {
     spdlog::warn("bench weather: not reusing {}: {}", marker.string(), e.what());
     return false;

@@ -220,6 +220,18 @@ TEST(WeatherBench, ShortUrbanRouteClearAndDustThenReuse) {
   EXPECT_FALSE(rerendered.runs[0].reused);
   EXPECT_TRUE(rerendered.runs[0].ok);
   EXPECT_TRUE(rerendered.runs[1].reused);
+
+  // A rendering with frozen particles (`sim --particles-still`, diagnostics) is not the
+  // condition: rendered again.
+  const fs::path dust_marker = dir / "sequences/seed1_6s/urban_dust_100/sim_complete.json";
+  marker = nlohmann::json::parse(testing::ReadFile(dust_marker));
+  marker["particles_still"] = true;
+  io::WriteFileAtomically(dust_marker.string(), marker.dump(2));
+  lines.clear();
+  const WeatherBenchResult unfrozen = RunWeatherBench(o, say);
+  EXPECT_TRUE(Said(lines, "rendering urban_dust_100"));
+  EXPECT_FALSE(Said(lines, "rendering urban_default"));
+  EXPECT_FALSE(nlohmann::json::parse(testing::ReadFile(dust_marker)).contains("particles_still"));
   fs::remove_all(dir);
 }
 

@@ -30,6 +30,7 @@ struct SimFlags {
   double nadir_hfov = 90, nadir_rate = 5;
   double drag = 0;
   std::string wind = "0,0";
+  bool particles_still = false;
 };
 
 // "auto" (on for drone routes), "off", or WxH.
@@ -55,6 +56,7 @@ sim::SimulationOptions ToOptions(const SimFlags& f) {
   try {
     o.world = sim::ParseWorld(f.world);
     o.weather = sim::ParseWeather(f.weather);
+    o.weather.particles_still = f.particles_still;
     if (f.format != "euroc" && f.format != "airsim") {
       throw Error(fmt::format("unknown format '{}' (euroc or airsim)", f.format),
                   {.field = "--format"});
@@ -118,6 +120,9 @@ void AddSimFlags(CLI::App& app, SimFlags& f) {
                  "none | KIND:PERCENT, KIND = rain snow leaves fog dust road-wetness road-snow "
                  "road-leaves, PERCENT 0-100")
       ->capture_default_str();
+  app.add_flag("--particles-still", f.particles_still,
+               "diagnostics: rain, snow, leaves and dust particles frozen as at t = 0 (they hide "
+               "the scene but do not move)");
   AddCommonFlags(app, f);
   app.add_option("--speed", f.speed, "drone speed (m/s)")->capture_default_str();
   app.add_option("--altitude", f.altitude, "drone altitude above ground (m)")

@@ -367,8 +367,9 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
   if (!write_error.empty()) throw Error(write_error, {.file = options.out_dir});
 
   const std::string comment =
-      fmt::format("optinav sim, world {}, weather {}, seed {}", WorldName(world.kind),
-                  options.weather.ToString(), options.seed);
+      fmt::format("optinav sim, world {}, weather {}{}, seed {}", WorldName(world.kind),
+                  options.weather.ToString(),
+                  options.weather.particles_still ? " (particles still)" : "", options.seed);
   const std::vector<io::ImuSample> imu_samples = ImuSamplesOf(imu);
   const std::vector<io::GroundTruthState> ground_truth = GroundTruthOf(traj, imu);
   std::vector<bool> outliers;
@@ -455,6 +456,7 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
   if (!options.world.ortho_path.empty()) j["ortho"] = options.world.ortho_path;
   j["route"] = options.route;
   j["weather"] = options.weather.ToString();
+  if (options.weather.particles_still) j["particles_still"] = true;
   j["seed"] = options.seed;
   j["format"] = FormatName(options.format);
   j["scale"] = options.scale;

@@ -443,8 +443,8 @@ void DrawWeatherParticles(cv::Mat& bgr, const cv::Mat& depth_m, const camera::Pi
   CheckInputs(bgr, depth_m, camera);
   if (spec.IsClear()) return;
   if (const ParticleModel* m = ModelFor(spec.kind)) {
-    DrawParticles(bgr, depth_m, camera, world_from_cam, t_ns * 1e-9, *m,
-                  std::clamp(spec.intensity, 0.0, 1.0), seed, spec.kind);
+    DrawParticles(bgr, depth_m, camera, world_from_cam, spec.particles_still ? 0.0 : t_ns * 1e-9,
+                  *m, std::clamp(spec.intensity, 0.0, 1.0), seed, spec.kind);
   }
 }
 

@@ -55,6 +55,11 @@ struct WeatherSpec {
   // altitude h wants about h / 20: then 100 % fog leaves the ground e^-2 (14 %) of its contrast
   // and 50 % about 70 %.
   double distance_scale = 1.0;
+  // Diagnostics: the particles frozen as they are at t = 0 (position, sway and tumble), the
+  // same 3D objects in every frame. They hide the scene as before but do not move: a run on
+  // such a sequence tells what the particles' motion does to an estimator from what their
+  // occlusion does (`optinav sim --particles-still`; docs/VIO.md, 2026-12-06 later).
+  bool particles_still = false;
 
   bool IsClear() const { return kind == WeatherKind::kNone || intensity <= 0; }
   bool HasParticles() const;

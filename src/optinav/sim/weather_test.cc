@@ -116,6 +116,21 @@ TEST(Weather, ParticlesChangeTheImageAndDependOnTheSeedOnly) {
   }
 }
 
+TEST(Weather, StillParticlesDoNotMove) {
+  // particles_still: the particles of t = 0 in every frame. A fixed camera sees the same snow
+  // 1 s later (moving, the flakes fall 1 m/s and the image changes), and the still image is
+  // the moving one at t = 0.
+  const Frame& f = ClearUrbanFrame();
+  WeatherSpec snow = ParseWeather("snow:75");
+  const cv::Mat moving0 = With(snow, 0), moving1 = With(snow, 1'000'000'000);
+  snow.particles_still = true;
+  const cv::Mat still0 = With(snow, 0), still1 = With(snow, 1'000'000'000);
+  EXPECT_GT(cv::norm(moving0, moving1, cv::NORM_L1), 0);
+  EXPECT_EQ(cv::norm(still0, still1, cv::NORM_INF), 0);
+  EXPECT_EQ(cv::norm(still0, moving0, cv::NORM_INF), 0);
+  EXPECT_GT(cv::norm(still1, f.bgr, cv::NORM_L1), 0) << "the particles are drawn";
+}
+
 // Rain drops are world objects: a camera that moves with the drops' velocity sees exactly the
 // same drops at a later time, and a wall right in front of the camera hides them all.
 TEST(Weather, ParticlesAreWorldObjects) {
