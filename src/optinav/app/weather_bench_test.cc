@@ -231,6 +231,10 @@ TEST(WeatherBench, ShortUrbanRouteClearAndDustThenReuse) {
   const WeatherBenchResult unfrozen = RunWeatherBench(o, say);
   EXPECT_TRUE(Said(lines, "rendering urban_dust_100"));
   EXPECT_FALSE(Said(lines, "rendering urban_default"));
+  ASSERT_EQ(unfrozen.runs.size(), 2u);
+  EXPECT_TRUE(unfrozen.runs[0].reused);
+  EXPECT_FALSE(unfrozen.runs[1].reused);
+  EXPECT_TRUE(unfrozen.runs[1].ok);
   EXPECT_FALSE(nlohmann::json::parse(testing::ReadFile(dust_marker)).contains("particles_still"));
   fs::remove_all(dir);
 }
