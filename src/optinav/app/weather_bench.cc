@@ -111,6 +111,13 @@ std::vector<Sequence> ListSequences(const WeatherBenchOptions& o) {
   return out;
 }
 
+// Whether the sequences of `world` have the varied asphalt (only the urban world has roads).
+bool VariedAsphalt(sim::WorldKind world, const WeatherBenchOptions& o) {
+  return o.varied_asphalt && world == sim::WorldKind::kUrban;
+}
+
+const char* AsphaltName(bool varied) { return varied ? "varied" : "tiled"; }
+
 sim::SimulationOptions SimOptions(const Sequence& s, const WeatherBenchOptions& o) {
   sim::SimulationOptions so;
   so.world.kind = s.world;
@@ -119,6 +126,7 @@ sim::SimulationOptions SimOptions(const Sequence& s, const WeatherBenchOptions& 
   so.seed = static_cast<uint64_t>(s.seed);
   so.scale = o.scale;
   so.duration_s = o.duration_s;
+  so.world.varied_asphalt = VariedAsphalt(s.world, o);
   so.format = sim::DatasetFormat::kEuroc;
   so.out_dir = s.dir;
   so.force = true;
@@ -127,7 +135,7 @@ sim::SimulationOptions SimOptions(const Sequence& s, const WeatherBenchOptions& 
 
 // True when the folder holds a complete rendering of these options: the completion marker exists
 // (written last: a folder without it is an interrupted run) and names the same world, weather,
-// seed and scale, with moving particles (not `sim --particles-still`).
+// seed, scale and asphalt, with moving particles (not `sim --particles-still`).
 bool CompleteRendering(const Sequence& s, const WeatherBenchOptions& o) {
   // Missing, unreadable or by another renderer version: rendered again.
   if (!sim::IsCurrentRendering(s.dir)) return false;
@@ -137,7 +145,8 @@ bool CompleteRendering(const Sequence& s, const WeatherBenchOptions& o) {
     return j.at("world") == WeatherBenchWorldName(s.world) && j.at("route") == "car" &&
            j.at("weather") == s.condition.ToString() && j.at("seed") == s.seed &&
            j.at("format") == "euroc" && std::abs(j.at("scale").get<double>() - o.scale) < 1e-9 &&
-           !j.value("particles_still", false);
+           !j.value("particles_still", false) &&
+           j.value("asphalt", std::string("tiled")) == AsphaltName(VariedAsphalt(s.world, o));
   } catch (const std::exception& e) {
     spdlog::warn("bench weather: not reusing {}: {}", marker.string(), e.what());
     return false;
@@ -184,6 +193,7 @@ nlohmann::json RunRecord(const WeatherRunResult& r, const WeatherBenchOptions& o
           {"max_frames", o.max_frames},
           {"vio_config", config_text},
           {"vehicle_setting", VehicleModelName(o.vehicle)},
+          {"asphalt", AsphaltName(VariedAsphalt(r.world, o))},
           {"vio_options_yaml", options_yaml},
           {"vehicle", r.vehicle},
           {"wall_s", r.wall_s},
@@ -213,6 +223,8 @@ bool LoadRun(const std::string& stem, const WeatherBenchOptions& o, const std::s
         throw Error(fmt::format("made with another {}", key), {.file = path});
     if (j.value("vio_config", std::string()) != config_text)
       throw Error("made with another --config", {.file = path});
+    if (j.value("asphalt", std::string("tiled")) != expect.at("asphalt"))
+      throw Error("made on another --asphalt", {.file = path});
     if (j.value("vehicle_setting", std::string()) != VehicleModelName(o.vehicle))
       throw Error("made with another --vehicle (or before the setting)", {.file = path});
     if (j.value("vio_options_yaml", std::string()) != options_yaml)

@@ -66,11 +66,12 @@ std::string LostCell(const WeatherCell& c, const Runs& runs, int seeds) {
 std::string WeatherBenchTable(const WeatherBenchOptions& o, const Cells& cells, const Runs& runs) {
   std::string t = fmt::format(
       "Mean localization error after the start pose (m; the weather document's metric), car "
-      "route, {} (scale {:g}), `optinav vio` threaded, --vehicle {}{}; seeds 1..{}{}.\n"
+      "route, {} (scale {:g}), `optinav vio` threaded, --vehicle {}{}{}; seeds 1..{}{}.\n"
       "x clear: the condition's error over clear's (same world and mode). lost: the VIO "
       "reported tracking lost (the document: local map lost). ORB-SLAM3: stereo, 800x600, the "
       "weather document (SEEDS.md part 1).\n\n",
       ImageSize(o), o.scale, VehicleModelName(o.vehicle),
+      o.varied_asphalt ? ", --asphalt varied" : "",
       o.duration_s > 0 ? fmt::format(", first {:g} s", o.duration_s) : "", o.seeds,
       o.seeds > 1 ? " (mean [max] over seeds)" : "");
   t += "| world | condition | mode | mean error (m) | x clear | odometry (m) | APE SE(3) (m) | "
@@ -177,6 +178,7 @@ nlohmann::json WeatherBenchJson(const WeatherBenchOptions& o, const WeatherBench
                    {"duration_s", o.duration_s},
                    {"max_frames", o.max_frames},
                    {"vehicle", VehicleModelName(o.vehicle)},
+                   {"asphalt", o.varied_asphalt ? "varied" : "tiled"},
                    {"vio", "threaded"}};
   j["cells"] = nlohmann::json::array();
   for (const WeatherCell& c : result.cells) j["cells"].push_back(CellJson(c));

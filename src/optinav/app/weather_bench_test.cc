@@ -236,6 +236,30 @@ TEST(WeatherBench, ShortUrbanRouteClearAndDustThenReuse) {
   EXPECT_FALSE(unfrozen.runs[1].reused);
   EXPECT_TRUE(unfrozen.runs[1].ok);
   EXPECT_FALSE(nlohmann::json::parse(testing::ReadFile(dust_marker)).contains("particles_still"));
+
+  // --asphalt varied: both urban sequences rendered and run again, recorded in their markers and
+  // run records; back to tiled, the same again.
+  o.varied_asphalt = true;
+  lines.clear();
+  const WeatherBenchResult varied = RunWeatherBench(o, say);
+  EXPECT_TRUE(Said(lines, "rendering urban_default"));
+  EXPECT_TRUE(Said(lines, "rendering urban_dust_100"));
+  ASSERT_EQ(varied.runs.size(), 2u);
+  for (const WeatherRunResult& run : varied.runs) {
+    EXPECT_FALSE(run.reused);
+    EXPECT_TRUE(run.ok);
+  }
+  EXPECT_EQ(nlohmann::json::parse(testing::ReadFile(dust_marker)).at("asphalt"), "varied");
+  EXPECT_EQ(nlohmann::json::parse(testing::ReadFile(dir / "runs/urban_dust_100_stereo_seed1.json"))
+                .at("asphalt"),
+            "varied");
+  EXPECT_NE(varied.table.find("--asphalt varied"), std::string::npos);
+  o.varied_asphalt = false;
+  lines.clear();
+  const WeatherBenchResult tiled = RunWeatherBench(o, say);
+  EXPECT_TRUE(Said(lines, "rendering urban_default"));
+  EXPECT_FALSE(tiled.runs[0].reused);
+  EXPECT_FALSE(nlohmann::json::parse(testing::ReadFile(dust_marker)).contains("asphalt"));
   fs::remove_all(dir);
 }
 

@@ -31,6 +31,7 @@ struct SimFlags {
   double drag = 0;
   std::string wind = "0,0";
   bool particles_still = false;
+  std::string asphalt = "tiled";
 };
 
 // "auto" (on for drone routes), "off", or WxH.
@@ -57,6 +58,15 @@ sim::SimulationOptions ToOptions(const SimFlags& f) {
     o.world = sim::ParseWorld(f.world);
     o.weather = sim::ParseWeather(f.weather);
     o.weather.particles_still = f.particles_still;
+    if (f.asphalt != "tiled" && f.asphalt != "varied") {
+      throw Error(fmt::format("unknown asphalt '{}' (tiled or varied)", f.asphalt),
+                  {.field = "--asphalt"});
+    }
+    o.world.varied_asphalt = f.asphalt == "varied";
+    if (o.world.varied_asphalt && o.world.kind != sim::WorldKind::kUrban) {
+      throw Error("--asphalt varied needs the urban world (only it has roads)",
+                  {.field = "--asphalt"});
+    }
     if (f.format != "euroc" && f.format != "airsim") {
       throw Error(fmt::format("unknown format '{}' (euroc or airsim)", f.format),
                   {.field = "--format"});
@@ -123,6 +133,10 @@ void AddSimFlags(CLI::App& app, SimFlags& f) {
   app.add_flag("--particles-still", f.particles_still,
                "diagnostics: rain, snow, leaves and dust particles frozen as at t = 0 (they hide "
                "the scene but do not move)");
+  app.add_option("--asphalt", f.asphalt,
+                 "urban road: tiled (one asphalt texture, repeating every 8 m) | varied (8 "
+                 "variants, one per 8 m, picked by a hash: no exact repetition)")
+      ->capture_default_str();
   AddCommonFlags(app, f);
   app.add_option("--speed", f.speed, "drone speed (m/s)")->capture_default_str();
   app.add_option("--altitude", f.altitude, "drone altitude above ground (m)")

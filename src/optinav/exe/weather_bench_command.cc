@@ -4,6 +4,7 @@
 #include <vector>
 
 #include <CLI/CLI.hpp>
+#include <fmt/format.h>
 
 #include "optinav/app/slurm_plan.h"
 #include "optinav/app/weather_bench.h"
@@ -18,7 +19,7 @@ namespace {
 // The flags that are lists, resolved after parsing ("" conditions: the suite's, per world).
 struct WeatherFlags {
   std::string worlds = "urban,terrain", conditions, modes = "stereo";
-  std::string plan, slurm_args, vehicle = "auto";
+  std::string plan, slurm_args, vehicle = "auto", asphalt = "tiled";
 };
 
 void AddFlags(CLI::App& app, app::WeatherBenchOptions* o, WeatherFlags* f) {
@@ -44,6 +45,9 @@ void AddFlags(CLI::App& app, app::WeatherBenchOptions* o, WeatherFlags* f) {
                  "auto|ground|free: the motion model of every run (as `optinav vio --vehicle`; "
                  "auto: ground on the car route)")
       ->capture_default_str();
+  app.add_option("--asphalt", f->asphalt,
+                 "tiled|varied: the urban road's asphalt (as `optinav sim --asphalt`)")
+      ->capture_default_str();
   app.add_option("--duration", o->duration_s, "seconds of the car route (0: all of it)")
       ->capture_default_str();
   app.add_option(
@@ -57,6 +61,10 @@ void AddFlags(CLI::App& app, app::WeatherBenchOptions* o, WeatherFlags* f) {
 
 void ApplyFlags(const WeatherFlags& f, app::WeatherBenchOptions* o) {
   o->vehicle = ParseVehicle(f.vehicle, "--vehicle");
+  if (f.asphalt != "tiled" && f.asphalt != "varied")
+    throw cli::UsageError(fmt::format("unknown asphalt '{}' (tiled or varied)", f.asphalt),
+                          "--asphalt");
+  o->varied_asphalt = f.asphalt == "varied";
   try {
     app::ParseWeatherBenchLists(f.worlds, f.conditions, f.modes, o);
   } catch (const Error& e) {

@@ -366,10 +366,10 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
   join_writers();
   if (!write_error.empty()) throw Error(write_error, {.file = options.out_dir});
 
-  const std::string comment =
-      fmt::format("optinav sim, world {}, weather {}{}, seed {}", WorldName(world.kind),
-                  options.weather.ToString(),
-                  options.weather.particles_still ? " (particles still)" : "", options.seed);
+  const std::string comment = fmt::format(
+      "optinav sim, world {}, weather {}{}{}, seed {}", WorldName(world.kind),
+      options.weather.ToString(), options.weather.particles_still ? " (particles still)" : "",
+      options.world.varied_asphalt ? " (varied asphalt)" : "", options.seed);
   const std::vector<io::ImuSample> imu_samples = ImuSamplesOf(imu);
   const std::vector<io::GroundTruthState> ground_truth = GroundTruthOf(traj, imu);
   std::vector<bool> outliers;
@@ -457,6 +457,7 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
   j["route"] = options.route;
   j["weather"] = options.weather.ToString();
   if (options.weather.particles_still) j["particles_still"] = true;
+  if (options.world.varied_asphalt) j["asphalt"] = "varied";
   j["seed"] = options.seed;
   j["format"] = FormatName(options.format);
   j["scale"] = options.scale;

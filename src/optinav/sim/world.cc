@@ -128,6 +128,32 @@ class TextureSet {
     world_->textures.emplace_back(img);
     return static_cast<int>(world_->textures.size()) - 1;
   }
+  // `count` variants of one surface that tile with each other along v (the image rows): each is
+  // the surface of seed variant 0 (as Add) at its top and bottom rows, blended within 6 % of the
+  // height into a surface of its own seed. A ribbon that picks a variant per period of its v
+  // repeat then shows no exact repetition, and no seam.
+  std::vector<int> AddVariants(SurfaceKind kind, SurfaceRole role, int count) {
+    const uint64_t s0 = seed_ * 1000003 + static_cast<int>(kind);
+    cv::Mat base = MakeSurfaceImage(kind, s0);
+    ApplySurfaceWeather(base, role, weather_, s0);
+    std::vector<int> ids;
+    for (int k = 0; k < count; ++k) {
+      const uint64_t s = seed_ * 1000003 + (k + 1) * 7727 + static_cast<int>(kind);
+      cv::Mat own = MakeSurfaceImage(kind, s);
+      ApplySurfaceWeather(own, role, weather_, s);
+      cv::Mat out = base.clone();
+      const int n = out.rows;
+      for (int y = 0; y < n; ++y) {
+        const double edge = std::min(y + 0.5, n - y - 0.5) / n;  // to the nearest v edge
+        const double t = std::clamp(edge / 0.06, 0.0, 1.0);
+        const double w = t * t * (3 - 2 * t);
+        cv::addWeighted(base.row(y), 1 - w, own.row(y), w, 0, out.row(y));
+      }
+      world_->textures.emplace_back(out);
+      ids.push_back(static_cast<int>(world_->textures.size()) - 1);
+    }
+    return ids;
+  }
   int AddImage(const cv::Mat& img, SurfaceRole role) {
     cv::Mat copy = img.clone();
     ApplySurfaceWeather(copy, role, weather_, seed_);
@@ -189,19 +215,53 @@ Eigen::AlignedBox2f RouteBox(const std::vector<RouteSample>& route) {
   return box;
 }
 
-// A ribbon between lateral offsets [a, b] (left positive) along the route.
+// A ribbon between lateral offsets [a, b] (left positive) along the route, its texture repeating
+// every `v_repeat` metres: with several `textures`, one per repeat, picked by a hash of `seed` and
+// the repeat's index (quads are split where a repeat ends).
 void Ribbon(MeshBuilder& mb, const std::vector<RouteSample>& route, float a, float b, float z,
-            float v_repeat, int tex, const Vec3& colour) {
+            float v_repeat, const std::vector<int>& textures, uint64_t seed, const Vec3& colour) {
+  if (textures.size() == 1) {  // one texture: whole quads between the route samples
+    for (size_t i = 1; i < route.size(); ++i) {
+      const RouteSample &r0 = route[i - 1], &r1 = route[i];
+      auto at = [&](const RouteSample& r, float off) {
+        const Eigen::Vector2f q = r.p + off * r.left;
+        return Vec3(q.x(), q.y(), z);
+      };
+      const float v0 = r0.s / v_repeat, v1 = r1.s / v_repeat;
+      // Right edge (offset a) to left edge (offset b); counter-clockwise seen from above.
+      mb.Quad(at(r0, a), at(r1, a), at(r1, b), at(r0, b), {1, v0}, {1, v1}, {0, v1}, {0, v0},
+              textures[0], colour);
+    }
+    return;
+  }
+  auto pick = [&](int64_t period) {
+    uint64_t h =
+        seed * 0x9E3779B97F4A7C15ull + static_cast<uint64_t>(period) * 0xBF58476D1CE4E5B9ull;
+    h ^= h >> 31;
+    h *= 0x94D049BB133111EBull;
+    h ^= h >> 29;
+    return textures[h % textures.size()];
+  };
   for (size_t i = 1; i < route.size(); ++i) {
     const RouteSample &r0 = route[i - 1], &r1 = route[i];
-    auto at = [&](const RouteSample& r, float off) {
-      const Eigen::Vector2f q = r.p + off * r.left;
+    const float v0 = r0.s / v_repeat, v1 = r1.s / v_repeat;
+    if (!(v1 > v0)) continue;
+    // The point at fraction f from r0 to r1, `off` to the left.
+    auto at = [&](float f, float off) {
+      const Eigen::Vector2f left = ((1 - f) * r0.left + f * r1.left).normalized();
+      const Eigen::Vector2f q = (1 - f) * r0.p + f * r1.p + off * left;
       return Vec3(q.x(), q.y(), z);
     };
-    const float v0 = r0.s / v_repeat, v1 = r1.s / v_repeat;
-    // Right edge (offset a) to left edge (offset b); counter-clockwise seen from above.
-    mb.Quad(at(r0, a), at(r1, a), at(r1, b), at(r0, b), {1, v0}, {1, v1}, {0, v1}, {0, v0}, tex,
-            colour);
+    for (float lo = v0; lo < v1;) {
+      const float period = std::floor(lo);
+      const float hi = std::min(v1, period + 1);
+      const float fa = (lo - v0) / (v1 - v0), fb = (hi - v0) / (v1 - v0);
+      const float ta = lo - period, tb = hi - period;
+      // Right edge (offset a) to left edge (offset b); counter-clockwise seen from above.
+      mb.Quad(at(fa, a), at(fb, a), at(fb, b), at(fa, b), {1, ta}, {1, tb}, {0, tb}, {0, ta},
+              pick(static_cast<int64_t>(period)), colour);
+      lo = hi;
+    }
   }
 }
 
@@ -225,7 +285,12 @@ World MakeUrban(const WorldOptions& o) {
   std::mt19937_64 rng(o.seed);
   std::uniform_real_distribution<float> u01(0, 1);
   auto uni = [&](float a, float b) { return a + (b - a) * u01(rng); };
-  const int asphalt = tx.Add(SurfaceKind::kAsphalt, SurfaceRole::kRoad);
+  // WorldOptions::varied_asphalt: 8 variants, one per 8 m of road. With one texture the road
+  // repeats exactly every 8 m, and where fog or dust leave only the road visible, loops verified
+  // against the wrong period (6-13 m off; docs/VIO.md, 2026-12-06 night).
+  const std::vector<int> asphalt =
+      o.varied_asphalt ? tx.AddVariants(SurfaceKind::kAsphalt, SurfaceRole::kRoad, 8)
+                       : std::vector<int>{tx.Add(SurfaceKind::kAsphalt, SurfaceRole::kRoad)};
   const int sidewalk = tx.Add(SurfaceKind::kSidewalk, SurfaceRole::kRoad);
   const int grass = tx.Add(SurfaceKind::kGrass, SurfaceRole::kGround);
   std::vector<int> facades, cars;
@@ -243,9 +308,9 @@ World MakeUrban(const WorldOptions& o) {
   const Eigen::AlignedBox2f rbox = RouteBox(route);
   MeshBuilder mb;
   // Road 14 m wide: the car drives in the right lane, 3 m right of the centre line.
-  Ribbon(mb, route, -4, 10, 0.02f, 8, asphalt, Vec3::Ones());
-  Ribbon(mb, route, -7, -4, 0.15f, 4, sidewalk, Vec3::Ones());
-  Ribbon(mb, route, 10, 13, 0.15f, 4, sidewalk, Vec3::Ones());
+  Ribbon(mb, route, -4, 10, 0.02f, 8, asphalt, o.seed, Vec3::Ones());
+  Ribbon(mb, route, -7, -4, 0.15f, 4, {sidewalk}, o.seed, Vec3::Ones());
+  Ribbon(mb, route, 10, 13, 0.15f, 4, {sidewalk}, o.seed, Vec3::Ones());
   const Eigen::AlignedBox2f gbox(rbox.min() - Eigen::Vector2f(160, 160),
                                  rbox.max() + Eigen::Vector2f(160, 160));
   GroundTiles(mb, gbox, 40, 6, grass, w.ground_height);

@@ -60,6 +60,9 @@ struct WorldOptions {
   int ortho_max_texture = 4096;  // kOrtho: texture size cap (px)
   uint64_t seed = 1;
   WeatherSpec weather;  // only its surface effects are used here
+  // Urban: the road's asphalt in 8 variants, one per 8 m of road, picked by a hash (`optinav sim
+  // --asphalt varied`), instead of one texture repeating every 8 m (false: the default).
+  bool varied_asphalt = false;
 };
 
 // "urban" | "terrain" | "ortho:PATH.tif". Throws Error (field "world") otherwise.
