@@ -344,8 +344,8 @@ void WriteWeatherPlot(const std::string& stem, const WeatherBenchOptions& option
   Canvas cv(width, height);
   cv.Rect(0, 0, width, height, "#ffffff");
   cv.Text(10, 20,
-          fmt::format("optinav bench weather: mean error after the start pose, car route, {}",
-                      ImageSize(options)),
+          fmt::format("optinav bench weather: mean error after the start pose, car route, {}{}",
+                      ImageSize(options), options.varied_asphalt ? ", varied asphalt" : ""),
           13);
   // Legend.
   double lx = left;
