@@ -417,14 +417,20 @@ nlohmann::json VioStatsJson(const VioRunReport& report) {
   j["loop_closure"] = r.loop_closure_ran;
   nlohmann::json loops = nlohmann::json::array();
   for (const vio::LoopEdge& l : r.loops)
-    loops.push_back({{"old_keyframe_s", l.t_old_ns * 1e-9},
-                     {"new_keyframe_s", l.t_new_ns * 1e-9},
-                     {"inliers", l.inliers},
-                     {"relative_translation_m", l.old_body_from_new_body.translation.norm()},
-                     {"correction_m", l.correction_m},
-                     {"residual_m", l.residual_m},
-                     {"sigma_m", l.sigma_m},
-                     {"sigma_rad", l.sigma_rad}});
+    loops.push_back(
+        {{"old_keyframe_s", l.t_old_ns * 1e-9},
+         {"new_keyframe_s", l.t_new_ns * 1e-9},
+         {"inliers", l.inliers},
+         {"relative_translation_m", l.old_body_from_new_body.translation.norm()},
+         {"old_body_from_new_body",
+          {l.old_body_from_new_body.translation.x(), l.old_body_from_new_body.translation.y(),
+           l.old_body_from_new_body.translation.z(), l.old_body_from_new_body.rotation.x(),
+           l.old_body_from_new_body.rotation.y(), l.old_body_from_new_body.rotation.z(),
+           l.old_body_from_new_body.rotation.w()}},
+         {"correction_m", l.correction_m},
+         {"residual_m", l.residual_m},
+         {"sigma_m", l.sigma_m},
+         {"sigma_rad", l.sigma_rad}});
   j["loops"] = loops;
   if (r.loop_closure_ran) {
     j["loop_keyframes"] = r.loop_keyframes;

@@ -286,6 +286,34 @@ double AteSe3(const eval::SyncedPair& synced) {
   return eval::ComputeApe(synced.ref, aligned, eval::PoseRelation::kTranslation).stats.rmse;
 }
 
+}  // namespace
+
+std::pair<size_t, size_t> LoopsOffTruth(const Trajectory& truth, const nlohmann::json& loops,
+                                        double tolerance_m) {
+  size_t checked = 0, off = 0;
+  if (truth.empty() || !truth.has_timestamps()) return {0, 0};
+  auto nearest = [&](double t_s) {
+    const int64_t t = static_cast<int64_t>(std::llround(t_s * 1e9));
+    auto it = std::lower_bound(truth.t_ns.begin(), truth.t_ns.end(), t);
+    if (it == truth.t_ns.end()) --it;
+    if (it != truth.t_ns.begin() && t - *std::prev(it) < *it - t) --it;
+    return truth.pose(static_cast<size_t>(it - truth.t_ns.begin()));
+  };
+  for (const nlohmann::json& l : loops) {
+    if (!l.contains("old_body_from_new_body")) continue;
+    const std::vector<double> v = l.at("old_body_from_new_body").get<std::vector<double>>();
+    if (v.size() != 7) continue;
+    const Rigid3d truth_old_from_new = nearest(l.at("old_keyframe_s").get<double>()).Inverse() *
+                                       nearest(l.at("new_keyframe_s").get<double>());
+    ++checked;
+    if ((Eigen::Vector3d(v[0], v[1], v[2]) - truth_old_from_new.translation).norm() > tolerance_m)
+      ++off;
+  }
+  return {checked, off};
+}
+
+namespace {
+
 void Evaluate(const Trajectory& truth, const std::string& stem, WeatherRunResult* r) {
   const eval::SyncedPair synced = eval::Synchronize(truth, io::ReadTrajectory(stem + ".tum"));
   r->mean_error_m = eval::MeanErrorAfterStartPose(synced.ref, synced.est);
@@ -301,6 +329,11 @@ void Evaluate(const Trajectory& truth, const std::string& stem, WeatherRunResult
   r->ape_rmse_se3_m = AteSe3(synced);
   // The truth is at the IMU rate: the frames it covers are the estimate's possible poses.
   r->coverage = r->frames ? static_cast<double>(synced.est.size()) / r->frames : NAN;
+  if (fs::is_regular_file(stem + ".stats.json")) {
+    const nlohmann::json stats = nlohmann::json::parse(io::ReadFileToString(stem + ".stats.json"));
+    if (stats.contains("loops"))
+      std::tie(r->loops_checked, r->loops_off_truth) = LoopsOffTruth(truth, stats.at("loops"));
+  }
   r->odometry_mean_error_m = r->mean_error_m;
   if (fs::is_regular_file(stem + ".odometry.tum")) {
     const eval::SyncedPair odo =
@@ -314,9 +347,12 @@ std::string RunLine(const WeatherRunResult& r, size_t done, size_t total) {
   std::string figures = "failed: " + r.error;
   if (r.ok) {
     figures = fmt::format(
-        "mean error {:.2f} m (odometry {:.2f} m), APE SE(3) {:.2f} m, {}, {:.1f} fps",
+        "mean error {:.2f} m (odometry {:.2f} m), APE SE(3) {:.2f} m, {}, {} loop(s){}, {:.1f} "
+        "fps",
         r.mean_error_m, r.odometry_mean_error_m, r.ape_rmse_se3_m,
-        r.Lost() ? fmt::format("LOST ({} interval(s))", r.lost.size()) : "not lost", r.fps);
+        r.Lost() ? fmt::format("LOST ({} interval(s))", r.lost.size()) : "not lost", r.loops,
+        r.loops_checked ? fmt::format(" ({} off the truth by > 1 m)", r.loops_off_truth) : "",
+        r.fps);
   }
   return fmt::format("bench weather: [{}/{}] {}, {}, seed {}: {}{}", done, total, r.sequence,
                      vio::VioModeName(r.mode), r.seed, r.reused ? "(reused) " : "", figures);

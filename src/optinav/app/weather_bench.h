@@ -21,6 +21,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "optinav/app/html_report.h"
 #include "optinav/app/slurm_plan.h"
 #include "optinav/app/vio_run.h"
@@ -114,6 +116,9 @@ struct WeatherRunResult {
   double frame_median_ms = NAN, frame_p95_ms = NAN;  // the VIO's work per frame ("total")
   double wall_s = NAN, path_length_m = NAN;
   size_t frames = 0, poses = 0, loops = 0;
+  // The loops against the ground truth (from the run's stats, LoopsOffTruth): how many carry
+  // their measured relative pose, and how many of those are off the truth's by more than 1 m.
+  size_t loops_checked = 0, loops_off_truth = 0;
   std::string vehicle;    // the motion model the run resolved: "ground" | "free"
   double coverage = NAN;  // poses matched to the ground truth / ground-truth frames
   std::vector<WeatherLost> lost;
@@ -161,6 +166,14 @@ WeatherBenchResult RunWeatherBench(const WeatherBenchOptions& options,
 std::vector<PlannedTask> WeatherBenchTasks(const WeatherBenchOptions& options);
 // Per task: 2 CPUs (the threaded VIO), memory and time from the frame size (docs/SLURM.md).
 SlurmResources WeatherBenchTaskResources(const WeatherBenchOptions& options);
+
+// Checks a run's loops (`optinav vio --stats` "loops", each with "old_keyframe_s",
+// "new_keyframe_s" and "old_body_from_new_body" [tx ty tz qx qy qz qw]) against `truth`: the
+// truth's translation between the two keyframes (nearest poses in time) is compared with the
+// measured one. Returns {loops checked, loops off by more than `tolerance_m`}; loops without the
+// relative pose (stats before it was written) are not checked.
+std::pair<size_t, size_t> LoopsOffTruth(const Trajectory& truth, const nlohmann::json& loops,
+                                        double tolerance_m = 1.0);
 
 // The cells from the runs (summaries over the seeds, ratios, the document's figures).
 std::vector<WeatherCell> SummariseWeatherRuns(const WeatherBenchOptions& options,

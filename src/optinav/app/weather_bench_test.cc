@@ -87,6 +87,36 @@ bool Said(const std::vector<std::string>& lines, const std::string& what) {
 
 // Six seconds of the urban car route at 400x300, clear and in 100 % dust, two jobs: the real
 // pipeline end to end (rendering, threaded VIO, the metrics, the files), then --reuse.
+// A loop is checked against the truth's translation between its two keyframes: one measured as
+// the truth has it passes, one a road-texture period (8 m) off does not; a loop without its
+// relative pose (stats written before it) is not checked.
+TEST(WeatherBench, LoopsOffTheTruth) {
+  Trajectory truth;
+  for (int i = 0; i <= 100; ++i) {  // 10 m/s along x, turning slowly
+    const double t = 0.1 * i;
+    truth.Add(static_cast<int64_t>(t * 1e9),
+              Rigid3d(Eigen::Quaterniond(Eigen::AngleAxisd(0.05 * t, Eigen::Vector3d::UnitZ())),
+                      Eigen::Vector3d(10 * t, 0.5 * t * t, 0)));
+  }
+  const Rigid3d old_body_from_new_body = truth.pose(20).Inverse() * truth.pose(90);
+  auto loop = [&](const Eigen::Vector3d& translation_offset) {
+    const Eigen::Vector3d t = old_body_from_new_body.translation + translation_offset;
+    const Eigen::Quaterniond q = old_body_from_new_body.rotation;
+    return nlohmann::json{
+        {"old_keyframe_s", 2.0},
+        {"new_keyframe_s", 9.0},
+        {"old_body_from_new_body", {t.x(), t.y(), t.z(), q.x(), q.y(), q.z(), q.w()}}};
+  };
+  nlohmann::json loops = nlohmann::json::array();
+  loops.push_back(loop({0.3, -0.2, 0.1}));  // 0.37 m off: within 1 m
+  loops.push_back(loop({8.0, 0, 0}));       // one period off
+  loops.push_back({{"old_keyframe_s", 2.0}, {"new_keyframe_s", 9.0}});
+  const auto [checked, off] = LoopsOffTruth(truth, loops);
+  EXPECT_EQ(checked, 2u);
+  EXPECT_EQ(off, 1u);
+  EXPECT_EQ(LoopsOffTruth(truth, loops, 0.2).second, 2u);
+}
+
 TEST(WeatherBench, ShortUrbanRouteClearAndDustThenReuse) {
   const fs::path dir = testing::MakeTempDir("weather_bench");
   WeatherBenchOptions o;
