@@ -116,8 +116,6 @@ bool VariedAsphalt(sim::WorldKind world, const WeatherBenchOptions& o) {
   return o.varied_asphalt && world == sim::WorldKind::kUrban;
 }
 
-const char* AsphaltName(bool varied) { return varied ? "varied" : "tiled"; }
-
 sim::SimulationOptions SimOptions(const Sequence& s, const WeatherBenchOptions& o) {
   sim::SimulationOptions so;
   so.world.kind = s.world;
@@ -146,7 +144,7 @@ bool CompleteRendering(const Sequence& s, const WeatherBenchOptions& o) {
            j.at("weather") == s.condition.ToString() && j.at("seed") == s.seed &&
            j.at("format") == "euroc" && std::abs(j.at("scale").get<double>() - o.scale) < 1e-9 &&
            !j.value("particles_still", false) &&
-           j.value("asphalt", std::string("tiled")) == AsphaltName(VariedAsphalt(s.world, o));
+           j.value("asphalt", std::string("tiled")) == sim::AsphaltName(VariedAsphalt(s.world, o));
   } catch (const std::exception& e) {
     spdlog::warn("bench weather: not reusing {}: {}", marker.string(), e.what());
     return false;
@@ -193,7 +191,7 @@ nlohmann::json RunRecord(const WeatherRunResult& r, const WeatherBenchOptions& o
           {"max_frames", o.max_frames},
           {"vio_config", config_text},
           {"vehicle_setting", VehicleModelName(o.vehicle)},
-          {"asphalt", AsphaltName(VariedAsphalt(r.world, o))},
+          {"asphalt", sim::AsphaltName(VariedAsphalt(r.world, o))},
           {"vio_options_yaml", options_yaml},
           {"vehicle", r.vehicle},
           {"wall_s", r.wall_s},

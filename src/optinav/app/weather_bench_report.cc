@@ -181,7 +181,7 @@ nlohmann::json WeatherBenchJson(const WeatherBenchOptions& o, const WeatherBench
                    {"duration_s", o.duration_s},
                    {"max_frames", o.max_frames},
                    {"vehicle", VehicleModelName(o.vehicle)},
-                   {"asphalt", o.varied_asphalt ? "varied" : "tiled"},
+                   {"asphalt", sim::AsphaltName(o.varied_asphalt)},
                    {"vio", "threaded"}};
   j["cells"] = nlohmann::json::array();
   for (const WeatherCell& c : result.cells) j["cells"].push_back(CellJson(c));

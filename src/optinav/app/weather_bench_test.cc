@@ -242,14 +242,21 @@ TEST(WeatherBench, ShortUrbanRouteClearAndDustThenReuse) {
   marker.erase("renderer");
   io::WriteFileAtomically(clear_marker.string(), marker.dump(2));
   EXPECT_FALSE(sim::IsCurrentRendering(clear_marker.parent_path().string()));
-  lines.clear();
-  const WeatherBenchResult rerendered = RunWeatherBench(o, say);
-  EXPECT_TRUE(Said(lines, "rendering urban_default"));
-  EXPECT_FALSE(Said(lines, "rendering urban_dust_100"));
-  ASSERT_EQ(rerendered.runs.size(), 2u);
-  EXPECT_FALSE(rerendered.runs[0].reused);
-  EXPECT_TRUE(rerendered.runs[0].ok);
-  EXPECT_TRUE(rerendered.runs[1].reused);
+  // Runs the bench again, expecting the sequence `redone` (0 clear, 1 dust) rendered and run
+  // again and the other kept.
+  const char* const names[] = {"urban_default", "urban_dust_100"};
+  auto expect_only_redone = [&](size_t redone) {
+    SCOPED_TRACE(names[redone]);
+    lines.clear();
+    const WeatherBenchResult result = RunWeatherBench(o, say);
+    EXPECT_TRUE(Said(lines, std::string("rendering ") + names[redone]));
+    EXPECT_FALSE(Said(lines, std::string("rendering ") + names[1 - redone]));
+    ASSERT_EQ(result.runs.size(), 2u);
+    EXPECT_FALSE(result.runs[redone].reused);
+    EXPECT_TRUE(result.runs[redone].ok);
+    EXPECT_TRUE(result.runs[1 - redone].reused);
+  };
+  expect_only_redone(0);
 
   // A rendering with frozen particles (`sim --particles-still`, diagnostics) is not the
   // condition: rendered again.
@@ -257,14 +264,7 @@ TEST(WeatherBench, ShortUrbanRouteClearAndDustThenReuse) {
   marker = nlohmann::json::parse(testing::ReadFile(dust_marker));
   marker["particles_still"] = true;
   io::WriteFileAtomically(dust_marker.string(), marker.dump(2));
-  lines.clear();
-  const WeatherBenchResult unfrozen = RunWeatherBench(o, say);
-  EXPECT_TRUE(Said(lines, "rendering urban_dust_100"));
-  EXPECT_FALSE(Said(lines, "rendering urban_default"));
-  ASSERT_EQ(unfrozen.runs.size(), 2u);
-  EXPECT_TRUE(unfrozen.runs[0].reused);
-  EXPECT_FALSE(unfrozen.runs[1].reused);
-  EXPECT_TRUE(unfrozen.runs[1].ok);
+  expect_only_redone(1);
   EXPECT_FALSE(nlohmann::json::parse(testing::ReadFile(dust_marker)).contains("particles_still"));
 
   // --asphalt varied: both urban sequences rendered and run again, recorded in their markers and

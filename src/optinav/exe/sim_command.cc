@@ -58,11 +58,7 @@ sim::SimulationOptions ToOptions(const SimFlags& f) {
     o.world = sim::ParseWorld(f.world);
     o.weather = sim::ParseWeather(f.weather);
     o.weather.particles_still = f.particles_still;
-    if (f.asphalt != "tiled" && f.asphalt != "varied") {
-      throw Error(fmt::format("unknown asphalt '{}' (tiled or varied)", f.asphalt),
-                  {.field = "--asphalt"});
-    }
-    o.world.varied_asphalt = f.asphalt == "varied";
+    o.world.varied_asphalt = sim::ParseAsphalt(f.asphalt, "--asphalt");
     if (o.world.varied_asphalt && o.world.kind != sim::WorldKind::kUrban) {
       throw Error("--asphalt varied needs the urban world (only it has roads)",
                   {.field = "--asphalt"});

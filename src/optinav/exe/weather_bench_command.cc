@@ -4,7 +4,6 @@
 #include <vector>
 
 #include <CLI/CLI.hpp>
-#include <fmt/format.h>
 
 #include "optinav/app/slurm_plan.h"
 #include "optinav/app/weather_bench.h"
@@ -61,11 +60,8 @@ void AddFlags(CLI::App& app, app::WeatherBenchOptions* o, WeatherFlags* f) {
 
 void ApplyFlags(const WeatherFlags& f, app::WeatherBenchOptions* o) {
   o->vehicle = ParseVehicle(f.vehicle, "--vehicle");
-  if (f.asphalt != "tiled" && f.asphalt != "varied")
-    throw cli::UsageError(fmt::format("unknown asphalt '{}' (tiled or varied)", f.asphalt),
-                          "--asphalt");
-  o->varied_asphalt = f.asphalt == "varied";
   try {
+    o->varied_asphalt = sim::ParseAsphalt(f.asphalt, "--asphalt");
     app::ParseWeatherBenchLists(f.worlds, f.conditions, f.modes, o);
   } catch (const Error& e) {
     throw cli::UsageError(e.message(), e.context().field);

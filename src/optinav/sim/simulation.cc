@@ -457,7 +457,7 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
   j["route"] = options.route;
   j["weather"] = options.weather.ToString();
   if (options.weather.particles_still) j["particles_still"] = true;
-  if (options.world.varied_asphalt) j["asphalt"] = "varied";
+  if (options.world.varied_asphalt) j["asphalt"] = AsphaltName(true);
   j["seed"] = options.seed;
   j["format"] = FormatName(options.format);
   j["scale"] = options.scale;

@@ -277,6 +277,18 @@ void GroundTiles(MeshBuilder& mb, const Eigen::AlignedBox2f& box, float tile, fl
   }
 }
 
+}  // namespace
+
+bool ParseAsphalt(const std::string& text, const std::string& field) {
+  if (text != "tiled" && text != "varied")
+    throw Error(fmt::format("unknown asphalt '{}' (tiled or varied)", text), {.field = field});
+  return text == "varied";
+}
+
+const char* AsphaltName(bool varied) { return varied ? "varied" : "tiled"; }
+
+namespace {
+
 World MakeUrban(const WorldOptions& o) {
   World w;
   w.kind = WorldKind::kUrban;

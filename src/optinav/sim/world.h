@@ -65,6 +65,11 @@ struct WorldOptions {
   bool varied_asphalt = false;
 };
 
+// "tiled" | "varied" (WorldOptions::varied_asphalt); throws Error naming `field` otherwise. And
+// back: the name of a setting.
+bool ParseAsphalt(const std::string& text, const std::string& field);
+const char* AsphaltName(bool varied);
+
 // "urban" | "terrain" | "ortho:PATH.tif". Throws Error (field "world") otherwise.
 WorldOptions ParseWorld(const std::string& text);
 
