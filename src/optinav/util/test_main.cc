@@ -2,8 +2,11 @@
 #include <atomic>
 #include <cstdlib>
 #include <fstream>
+#include <iostream>
+#include <mutex>
 #include <random>
 #include <typeinfo>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -23,6 +26,15 @@ std::filesystem::path SharedDataDir() {
   return dir;
 }
 
+namespace {
+// Every directory MakeTempDir made in this process; main removes them after a passing run.
+std::mutex scratch_mutex;
+std::vector<std::filesystem::path>& ScratchDirs() {
+  static std::vector<std::filesystem::path> dirs;
+  return dirs;
+}
+}  // namespace
+
 std::filesystem::path MakeTempDir(const std::string& prefix) {
   static std::atomic<int> counter{0};
   std::random_device rd;
@@ -31,6 +43,8 @@ std::filesystem::path MakeTempDir(const std::string& prefix) {
       ("optinav_" + prefix + "_" + std::to_string(rd()) + "_" + std::to_string(counter++));
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
+  const std::lock_guard lock(scratch_mutex);
+  ScratchDirs().push_back(dir);
   return dir;
 }
 
@@ -102,5 +116,23 @@ int main(int argc, char** argv) {
   ::testing::InitGoogleTest(&argc, argv);
   optinav::InitLogging();
   spdlog::set_level(spdlog::level::warn);
-  return RUN_ALL_TESTS();
+  const int result = RUN_ALL_TESTS();
+  // The scratch directories (simulated sequences among them, up to 200 MB each) are removed
+  // when every test passed; a failing run keeps them to be looked at, as does
+  // OPTINAV_KEEP_TEST_DIRS=1.
+  const char* keep = std::getenv("OPTINAV_KEEP_TEST_DIRS");
+  const bool keep_dirs = result != 0 || (keep != nullptr && std::string(keep) != "0");
+  const std::lock_guard lock(optinav::testing::scratch_mutex);
+  for (const auto& dir : optinav::testing::ScratchDirs()) {
+    if (keep_dirs) {
+      std::cerr << "scratch directory kept: " << dir.string() << "\n";
+      continue;
+    }
+    std::error_code ec;
+    std::filesystem::remove_all(dir, ec);
+    if (ec)
+      std::cerr << "cannot remove scratch directory " << dir.string() << ": " << ec.message()
+                << "\n";
+  }
+  return result;
 }
