@@ -144,6 +144,11 @@ void RenderSequence(GnssBenchSequence sequence, const GnssBenchOptions& options,
   o.scale = options.scale;
   o.seed = 7;
   o.world.kind = sim::WorldKind::kUrban;
+  // The road as rendered before 2026-12-06 (`sim --asphalt tiled`), where every recorded figure
+  // of this benchmark was measured. Over the varied road the outdoor flight's in-motion start
+  // aligns at 16 s instead of 12 (226x144), and a 40 s run aligns no ENU frame (docs/VIO.md,
+  // 2026-12-06): re-measuring this benchmark there is open work.
+  o.world.varied_asphalt = false;
   if (sequence == GnssBenchSequence::kRoom) {
     const std::string wp =
         (fs::path(options.out_dir) / "sequences" / "room_waypoints.txt").string();

@@ -72,9 +72,10 @@ struct WeatherBenchOptions {
   // The motion model of every run (as `optinav vio --vehicle`); auto: a car on these routes.
   // Recorded with each run; --reuse keeps only runs made with the same setting.
   VehicleModel vehicle = VehicleModel::kAuto;
-  // The urban road's asphalt in 8 variants instead of one repeating texture (`optinav sim
-  // --asphalt varied`); recorded with the sequences and runs, --reuse keeps only the same.
-  bool varied_asphalt = false;
+  // The urban road's asphalt in 8 variants (the default) instead of one repeating texture
+  // (`optinav sim --asphalt tiled`); recorded with the sequences and runs, --reuse keeps only
+  // the same.
+  bool varied_asphalt = true;
   double duration_s = 0;  // seconds of the car route to render (0: all of it); tests
   size_t max_frames = 0;  // frames the VIO processes (0: all); tests
   // A planned sweep (app/slurm_plan.h). task >= 0: only that task of WeatherBenchTasks() (one

@@ -71,7 +71,7 @@ std::string WeatherBenchTable(const WeatherBenchOptions& o, const Cells& cells, 
       "reported tracking lost (the document: local map lost). ORB-SLAM3: stereo, 800x600, the "
       "weather document (SEEDS.md part 1).\n\n",
       ImageSize(o), o.scale, VehicleModelName(o.vehicle),
-      o.varied_asphalt ? ", --asphalt varied" : "",
+      o.varied_asphalt ? "" : ", --asphalt tiled",
       o.duration_s > 0 ? fmt::format(", first {:g} s", o.duration_s) : "", o.seeds,
       o.seeds > 1 ? " (mean [max] over seeds)" : "");
   t += "| world | condition | mode | mean error (m) | x clear | odometry (m) | APE SE(3) (m) | "
@@ -348,7 +348,7 @@ void WriteWeatherPlot(const std::string& stem, const WeatherBenchOptions& option
   cv.Rect(0, 0, width, height, "#ffffff");
   cv.Text(10, 20,
           fmt::format("optinav bench weather: mean error after the start pose, car route, {}{}",
-                      ImageSize(options), options.varied_asphalt ? ", varied asphalt" : ""),
+                      ImageSize(options), options.varied_asphalt ? "" : ", tiled asphalt"),
           13);
   // Legend.
   double lx = left;

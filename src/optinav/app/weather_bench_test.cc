@@ -267,29 +267,39 @@ TEST(WeatherBench, ShortUrbanRouteClearAndDustThenReuse) {
   expect_only_redone(1);
   EXPECT_FALSE(nlohmann::json::parse(testing::ReadFile(dust_marker)).contains("particles_still"));
 
-  // --asphalt varied: both urban sequences rendered and run again, recorded in their markers and
-  // run records; back to tiled, the same again.
-  o.varied_asphalt = true;
-  lines.clear();
-  const WeatherBenchResult varied = RunWeatherBench(o, say);
-  EXPECT_TRUE(Said(lines, "rendering urban_default"));
-  EXPECT_TRUE(Said(lines, "rendering urban_dust_100"));
-  ASSERT_EQ(varied.runs.size(), 2u);
-  for (const WeatherRunResult& run : varied.runs) {
-    EXPECT_FALSE(run.reused);
-    EXPECT_TRUE(run.ok);
-  }
+  // The default asphalt is varied, and the marker says so.
   EXPECT_EQ(nlohmann::json::parse(testing::ReadFile(dust_marker)).at("asphalt"), "varied");
-  EXPECT_EQ(nlohmann::json::parse(testing::ReadFile(dir / "runs/urban_dust_100_stereo_seed1.json"))
-                .at("asphalt"),
-            "varied");
-  EXPECT_NE(varied.table.find("--asphalt varied"), std::string::npos);
+  // --asphalt tiled: both urban sequences rendered and run again, recorded in their markers and
+  // run records; back to varied, the same again. A marker without the key (rendered before the
+  // key existed) is tiled.
   o.varied_asphalt = false;
   lines.clear();
   const WeatherBenchResult tiled = RunWeatherBench(o, say);
   EXPECT_TRUE(Said(lines, "rendering urban_default"));
-  EXPECT_FALSE(tiled.runs[0].reused);
-  EXPECT_FALSE(nlohmann::json::parse(testing::ReadFile(dust_marker)).contains("asphalt"));
+  EXPECT_TRUE(Said(lines, "rendering urban_dust_100"));
+  ASSERT_EQ(tiled.runs.size(), 2u);
+  for (const WeatherRunResult& run : tiled.runs) {
+    EXPECT_FALSE(run.reused);
+    EXPECT_TRUE(run.ok);
+  }
+  EXPECT_EQ(nlohmann::json::parse(testing::ReadFile(dust_marker)).at("asphalt"), "tiled");
+  EXPECT_EQ(nlohmann::json::parse(testing::ReadFile(dir / "runs/urban_dust_100_stereo_seed1.json"))
+                .at("asphalt"),
+            "tiled");
+  EXPECT_NE(tiled.table.find("--asphalt tiled"), std::string::npos);
+  marker = nlohmann::json::parse(testing::ReadFile(dust_marker));
+  marker.erase("asphalt");
+  io::WriteFileAtomically(dust_marker.string(), marker.dump(2));
+  o.reuse = true;
+  lines.clear();
+  EXPECT_TRUE(RunWeatherBench(o, say).runs[1].reused);
+  o.varied_asphalt = true;
+  lines.clear();
+  const WeatherBenchResult varied = RunWeatherBench(o, say);
+  EXPECT_TRUE(Said(lines, "rendering urban_default"));
+  EXPECT_FALSE(varied.runs[0].reused);
+  EXPECT_EQ(varied.table.find("--asphalt"), std::string::npos);
+  EXPECT_EQ(nlohmann::json::parse(testing::ReadFile(dust_marker)).at("asphalt"), "varied");
   fs::remove_all(dir);
 }
 

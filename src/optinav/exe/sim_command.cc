@@ -31,7 +31,7 @@ struct SimFlags {
   double drag = 0;
   std::string wind = "0,0";
   bool particles_still = false;
-  std::string asphalt = "tiled";
+  std::string asphalt;  // "" = the default: varied on the urban world
 };
 
 // "auto" (on for drone routes), "off", or WxH.
@@ -58,11 +58,13 @@ sim::SimulationOptions ToOptions(const SimFlags& f) {
     o.world = sim::ParseWorld(f.world);
     o.weather = sim::ParseWeather(f.weather);
     o.weather.particles_still = f.particles_still;
-    o.world.varied_asphalt = sim::ParseAsphalt(f.asphalt, "--asphalt");
-    if (o.world.varied_asphalt && o.world.kind != sim::WorldKind::kUrban) {
+    // "" (not given): varied on the urban world; elsewhere there is no road to vary.
+    const bool varied = f.asphalt.empty() || sim::ParseAsphalt(f.asphalt, "--asphalt");
+    if (varied && !f.asphalt.empty() && o.world.kind != sim::WorldKind::kUrban) {
       throw Error("--asphalt varied needs the urban world (only it has roads)",
                   {.field = "--asphalt"});
     }
+    o.world.varied_asphalt = varied && o.world.kind == sim::WorldKind::kUrban;
     if (f.format != "euroc" && f.format != "airsim") {
       throw Error(fmt::format("unknown format '{}' (euroc or airsim)", f.format),
                   {.field = "--format"});
@@ -130,9 +132,9 @@ void AddSimFlags(CLI::App& app, SimFlags& f) {
                "diagnostics: rain, snow, leaves and dust particles frozen as at t = 0 (they hide "
                "the scene but do not move)");
   app.add_option("--asphalt", f.asphalt,
-                 "urban road: tiled (one asphalt texture, repeating every 8 m) | varied (8 "
-                 "variants, one per 8 m, picked by a hash: no exact repetition)")
-      ->capture_default_str();
+                 "urban road: varied (the default: 8 asphalt variants, one per 8 m, picked by a "
+                 "hash, no exact repetition) | tiled (one texture repeating every 8 m, as "
+                 "rendered before 2026-12-06)");
   AddCommonFlags(app, f);
   app.add_option("--speed", f.speed, "drone speed (m/s)")->capture_default_str();
   app.add_option("--altitude", f.altitude, "drone altitude above ground (m)")

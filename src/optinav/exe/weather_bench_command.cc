@@ -18,7 +18,7 @@ namespace {
 // The flags that are lists, resolved after parsing ("" conditions: the suite's, per world).
 struct WeatherFlags {
   std::string worlds = "urban,terrain", conditions, modes = "stereo";
-  std::string plan, slurm_args, vehicle = "auto", asphalt = "tiled";
+  std::string plan, slurm_args, vehicle = "auto", asphalt = "varied";
 };
 
 void AddFlags(CLI::App& app, app::WeatherBenchOptions* o, WeatherFlags* f) {
@@ -45,7 +45,7 @@ void AddFlags(CLI::App& app, app::WeatherBenchOptions* o, WeatherFlags* f) {
                  "auto: ground on the car route)")
       ->capture_default_str();
   app.add_option("--asphalt", f->asphalt,
-                 "tiled|varied: the urban road's asphalt (as `optinav sim --asphalt`)")
+                 "varied|tiled: the urban road's asphalt (as `optinav sim --asphalt`)")
       ->capture_default_str();
   app.add_option("--duration", o->duration_s, "seconds of the car route (0: all of it)")
       ->capture_default_str();

@@ -214,17 +214,17 @@ TEST(Renderer, StereoDisparityHasNoBias) {
 // than a couple of grey levels (a nearest-level sampler jumps by up to 42 on the sidewalk between
 // lod 1.499 and 1.501: a seam at a fixed distance from the camera, travelling with it, that makes
 // corners no real camera sees). At an integer lod the sample is that level's bilinear sample.
-// `--asphalt varied`: nadir views of the road from 2 m, one period of its texture (8 m of road)
-// apart on a straight, show different asphalt. With the default tiled asphalt they are the same
+// `--asphalt varied` (the default): nadir views of the road from 2 m, one period of its texture (8
+// m of road) apart on a straight, show different asphalt. With `--asphalt tiled` they are the same
 // image, and where fog or dust leave only the road visible the loop closer verified loops one or
 // two periods off (docs/VIO.md, 2026-12-06 night).
 TEST(Renderer, VariedAsphaltDoesNotRepeatEveryPeriod) {
-  const Scene& tiled = Urban();
+  const Scene& varied = Urban();
   WorldOptions o;
   o.seed = 5;
-  o.varied_asphalt = true;
-  const World varied = MakeWorld(o);
-  const Renderer rt(tiled.world), rv(varied);
+  o.varied_asphalt = false;
+  const World tiled_world = MakeWorld(o);
+  const Renderer rt(tiled_world), rv(varied.world);
   const camera::PinholeCamera cam = camera::PinholeCamera::FromHorizontalFov(160, 120, M_PI / 3);
   const Rigid3d body_from_cam = ForwardCamera({0, 0, 2.0}, M_PI / 2);
   // Mean absolute difference (grey levels) of two views of one world.
@@ -239,13 +239,13 @@ TEST(Renderer, VariedAsphaltDoesNotRepeatEveryPeriod) {
   };
   int straight = 0, tiled_same = 0, varied_differ = 0;
   for (double t0 = 8; t0 < 95; t0 += 7) {
-    const Rigid3d a = tiled.route.At(static_cast<int64_t>(t0 * 1e9)).world_from_body;
+    const Rigid3d a = varied.route.At(static_cast<int64_t>(t0 * 1e9)).world_from_body;
     // The pose 8 m further along (Euclidean: equal to the arc length on a straight).
     int64_t t1 = static_cast<int64_t>(t0 * 1e9);
     Rigid3d b = a;
-    while ((b.translation - a.translation).head<2>().norm() < 8.0 && t1 < tiled.route.end_ns()) {
+    while ((b.translation - a.translation).head<2>().norm() < 8.0 && t1 < varied.route.end_ns()) {
       t1 += 1'000'000;
-      b = tiled.route.At(t1).world_from_body;
+      b = varied.route.At(t1).world_from_body;
     }
     if (Eigen::AngleAxisd(a.rotation.inverse() * b.rotation).angle() > 0.2 * M_PI / 180) continue;
     ++straight;

@@ -457,7 +457,8 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
   j["route"] = options.route;
   j["weather"] = options.weather.ToString();
   if (options.weather.particles_still) j["particles_still"] = true;
-  if (options.world.varied_asphalt) j["asphalt"] = AsphaltName(true);
+  // Urban only; a marker without it (written before 2026-12-06) is tiled.
+  if (world.kind == WorldKind::kUrban) j["asphalt"] = AsphaltName(options.world.varied_asphalt);
   j["seed"] = options.seed;
   j["format"] = FormatName(options.format);
   j["scale"] = options.scale;

@@ -61,8 +61,9 @@ struct WorldOptions {
   uint64_t seed = 1;
   WeatherSpec weather;  // only its surface effects are used here
   // Urban: the road's asphalt in 8 variants, one per 8 m of road, picked by a hash (`optinav sim
-  // --asphalt varied`), instead of one texture repeating every 8 m (false: the default).
-  bool varied_asphalt = false;
+  // --asphalt varied`, the default since 2026-12-06), instead of one texture repeating every 8 m
+  // (false: `--asphalt tiled`, the road of every sequence rendered before). Ignored elsewhere.
+  bool varied_asphalt = true;
 };
 
 // "tiled" | "varied" (WorldOptions::varied_asphalt); throws Error naming `field` otherwise. And

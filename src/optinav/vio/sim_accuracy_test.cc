@@ -80,10 +80,15 @@ Accuracy Evaluate(const std::string& dir, const VioRunResult& r, bool se3 = true
   return a;
 }
 
+// `varied_asphalt` false: the urban road as rendered before 2026-12-06, one asphalt texture
+// repeating every 8 m (`optinav sim --asphalt tiled`), for the cases found on it whose premise
+// the varied road does not reproduce (each says what it measured there).
 std::string Simulate(const std::string& name, const std::string& route, double duration_s,
                      double speed, double altitude, uint64_t seed,
-                     const std::string& weather = "none", double scale = 0.5) {
+                     const std::string& weather = "none", double scale = 0.5,
+                     bool varied_asphalt = true) {
   sim::SimulationOptions o;
+  o.world.varied_asphalt = varied_asphalt;
   o.route = route;
   o.duration_s = duration_s;
   o.speed_m_s = speed;
@@ -194,9 +199,12 @@ TEST(SimAccuracy, DroneStereoInertial) {
 // start took the drone as parked (velocity 0) and its estimate ran 225 m off over 205 m. The
 // camera's tracks moved 22 px over that window (a parked car's: 0.1 px); with the check on
 // them the start waits for the alignment (measured 2026-12-05: mean error 4.70 m, 10.2 m at the
-// end).
+// end). The case needs the alignment to fail past the still window, which it does on the tiled
+// road; on the varied road (the default since 2026-12-06) the alignment succeeds first and the
+// IMU-only start is in-motion too (measured 2026-12-06), so this flight stays on the tiled road.
 TEST(SimAccuracy, DroneCruisingAtConstantVelocityIsNotTakenAsParked) {
-  const std::string dir = Simulate("cruise", "drone", 40.0, 5.0, 10.0, 7, "none", 0.3);
+  const std::string dir =
+      Simulate("cruise", "drone", 40.0, 5.0, 10.0, 7, "none", 0.3, /*varied_asphalt=*/false);
   VioRunOptions options;
   const Accuracy a = Evaluate(dir, RunVioOnEuroc(dir, options), /*se3=*/false);
   VioRunOptions imu_only = options;
@@ -217,7 +225,13 @@ TEST(SimAccuracy, CarStereoOnly) {
   // The urban car route of the AirSim weather dataset (SEEDS.md part 1), first 21 s: 136 m
   // straight, then the start of the first right turn (the straight alone hides the rotation drift
   // that dominated the full route).
-  const std::string dir = Simulate("car", "car", 21.0, 5.0, 20.0, 3);
+  // On the tiled road, where every figure below was measured. Over the varied road (the default
+  // since 2026-12-06) this seed measured 0.529 m (tiled 0.450 m, threaded); over seeds 1-4 the
+  // varied road is no harder (mean 0.457 m, tiled 0.496 m; 0.58/0.33/0.53/0.39 against
+  // 0.49/0.41/0.45/0.64), so the one seed moved within the spread between seeds
+  // (docs/VIO.md, 2026-12-06).
+  const std::string dir =
+      Simulate("car", "car", 21.0, 5.0, 20.0, 3, "none", 0.5, /*varied_asphalt=*/false);
   VioRunOptions options;
   options.vio.mode = VioMode::kStereo;
   const VioRunResult r = RunVioOnEuroc(dir, options);
@@ -282,7 +296,11 @@ TEST(SimAccuracy, CarStereoInertialInFogKeepsTheStaticGyroBias) {
   // at the end with the measured prior; 0.739 m, 1.293 m with the loose one. The old renderer's
   // mip seams travelled with the camera, and in fog, where the near field is all there is to
   // track, those false corners made much of the pull on the bias (docs/VIO.md, 2026-12-05).
-  const std::string dir = Simulate("fog", "car", 25.0, 5.0, 20.0, 1, "fog:100");
+  // On the tiled road: on the varied one (the default since 2026-12-06) this segment measured
+  // 0.78 m with the measured prior and 0.62 m with the loose one, so the prior's gain is not
+  // general; this test guards the case where it was found (docs/VIO.md, 2026-12-06).
+  const std::string dir =
+      Simulate("fog", "car", 25.0, 5.0, 20.0, 1, "fog:100", 0.5, /*varied_asphalt=*/false);
   auto run = [&](double standard_errors) {
     VioRunOptions options;
     options.vio.mode = VioMode::kStereoImu;
@@ -331,8 +349,10 @@ TEST(SimAccuracy, CarStereoInertialInFallingLeavesGatesTheParticles) {
   // leaves drift through the scene with the wind and KLT tracks them like the scene: with the
   // post-solve outlier check alone they bent the yaw (3.8 deg at 25 s; 15.0 m mean error over
   // the whole route), the gate on the IMU-predicted pose keeps them out of the solve
-  // (docs/VIO.md, weather).
-  const std::string dir = Simulate("leaves", "car", 25.0, 5.0, 20.0, 1, "leaves:50");
+  // (docs/VIO.md, weather). On the tiled road: on the varied one (the default since 2026-12-06)
+  // the gate gains less here (1.49 m without it, under the 1.5x this test asks for).
+  const std::string dir =
+      Simulate("leaves", "car", 25.0, 5.0, 20.0, 1, "leaves:50", 0.5, /*varied_asphalt=*/false);
   auto run = [&](double gate_px) {
     VioRunOptions options;
     options.vio.mode = VioMode::kStereoImu;
