@@ -136,8 +136,10 @@ void WriteRoomWaypoints(const std::string& path) {
   io::WriteFileAtomically(path, s);
 }
 
-void RenderSequence(GnssBenchSequence sequence, const GnssBenchOptions& options,
-                    const std::string& dir) {
+// The simulation of a sequence (the room's waypoints file: OUT/sequences/room_waypoints.txt,
+// written by RenderSequence).
+sim::SimulationOptions SequenceOptions(GnssBenchSequence sequence, const GnssBenchOptions& options,
+                                       const std::string& dir) {
   sim::SimulationOptions o;
   o.out_dir = dir;
   o.force = true;
@@ -150,11 +152,7 @@ void RenderSequence(GnssBenchSequence sequence, const GnssBenchOptions& options,
   // 2026-12-06): re-measuring this benchmark there is open work.
   o.world.varied_asphalt = false;
   if (sequence == GnssBenchSequence::kRoom) {
-    const std::string wp =
-        (fs::path(options.out_dir) / "sequences" / "room_waypoints.txt").string();
-    fs::create_directories(fs::path(wp).parent_path());
-    WriteRoomWaypoints(wp);
-    o.route = "drone:" + wp;
+    o.route = "drone:" + (fs::path(options.out_dir) / "sequences" / "room_waypoints.txt").string();
     o.speed_m_s = 1.5;
     o.duration_s = 100;
   } else {
@@ -164,6 +162,15 @@ void RenderSequence(GnssBenchSequence sequence, const GnssBenchOptions& options,
     o.duration_s = 200;
   }
   if (options.duration_s > 0) o.duration_s = options.duration_s;
+  return o;
+}
+
+void RenderSequence(const sim::SimulationOptions& o) {
+  if (o.route.rfind("drone:", 0) == 0) {
+    const std::string wp = o.route.substr(6);
+    fs::create_directories(fs::path(wp).parent_path());
+    WriteRoomWaypoints(wp);
+  }
   sim::RunSimulation(o);
 }
 
@@ -180,14 +187,23 @@ GnssBenchSequenceInfo PrepareSequence(GnssBenchSequence sequence, const GnssBenc
     fs::create_directories(fs::path(seq.dir).parent_path());
     lock.emplace(seq.dir + ".lock");
   }
-  const bool complete = sim::IsCurrentRendering(seq.dir);  // by this renderer version
-  if (options.merge && !complete)
-    throw Error("the sequence is not complete (merge renders nothing)", {.file = seq.dir});
+  const sim::SimulationOptions sim_options = SequenceOptions(sequence, options, seq.dir);
+  // By this renderer version, of these options (--scale, --duration).
+  std::string why;
+  const bool complete = sim::IsRenderingOf(seq.dir, sim_options, &why);
+  if (options.merge && !complete) {
+    throw Error(
+        "the sequence is not complete or not of these options (merge renders nothing): " + why,
+        {.file = seq.dir});
+  }
   if (!(options.reuse && complete)) {
-    if (progress)
-      progress(StringPrintf("bench gnss: rendering the %s sequence -> %s", seq.name.c_str(),
-                            seq.dir.c_str()));
-    RenderSequence(sequence, options, seq.dir);
+    if (progress) {
+      const std::string reason = options.reuse ? " (not reused: " + why + ")" : "";
+      progress(StringPrintf("bench gnss: rendering the %s sequence -> %s%s", seq.name.c_str(),
+                            seq.dir.c_str(), reason.c_str()));
+    }
+    RenderSequence(sim_options);
+    seq.rendered = true;
   }
   const fs::path mav0 = fs::path(seq.dir) / "mav0";
   seq.truth = io::ReadTrajectory((mav0 / "state_groundtruth_estimate0" / "data.csv").string());
@@ -448,7 +464,7 @@ GnssRunResult RunOne(const GnssBenchSequenceInfo& seq, std::optional<GnssConditi
   r.norm = condition ? norm : std::nullopt;
   r.seed = seed;
   const fs::path stem = fs::path(options.out_dir) / "runs" / RunFileStem(r);
-  r.reused = options.reuse && LoadRun(stem, options.fusion, &r);
+  r.reused = options.reuse && !seq.rendered && LoadRun(stem, options.fusion, &r);
   if (options.merge && !r.reused)
     throw Error("no finished run to merge (merge runs nothing)", {.file = stem.string() + ".json"});
   try {

@@ -87,6 +87,7 @@ struct GnssBenchSequenceInfo {
   Trajectory truth;            // body, world = ENU
   Eigen::Vector3d lever_arm_in_body = Eigen::Vector3d::Zero();
   double length_m = 0;
+  bool rendered = false;  // rendered by this invocation: its earlier runs are not reused
 };
 
 // Errors in metres; NaN where a figure does not apply.

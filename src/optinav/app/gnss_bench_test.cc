@@ -250,6 +250,19 @@ TEST(GnssBenchRun, SmallRoomRunAndReuse) {
   EXPECT_NE(testing::ReadFile(out / "runs/room_ideal_huber_seed1.json")
                 .find("\"factor_sigma_scale\": 2.0"),
             std::string::npos);
+
+  // Another --duration: the sequence is not of these options, so it is rendered again (the
+  // reason printed) and both runs made again on it.
+  o.duration_s = 15;
+  lines.clear();
+  const GnssBenchResult shorter = RunGnssBench(o, progress);
+  ASSERT_FALSE(lines.empty());
+  EXPECT_NE(lines[0].find("(not reused: requested_duration_s: 20.0 (wanted 15.0))"),
+            std::string::npos)
+      << lines[0];
+  ASSERT_EQ(shorter.runs.size(), 2u);
+  EXPECT_FALSE(shorter.runs[0].reused);
+  EXPECT_FALSE(shorter.runs[1].reused);
   fs::remove_all(root);
 }
 

@@ -104,7 +104,6 @@ double MaxTiltDeg(const std::string& flight_dir) {
 // Renders a flight unless complete (reuse).
 void RenderFlight(const NavBenchOptions& o, const std::string& waypoints, const Flight& f, bool fog,
                   uint64_t seed) {
-  if (o.reuse && sim::IsCurrentRendering(f.dir)) return;
   sim::SimulationOptions s;
   s.world.kind = sim::WorldKind::kOrtho;
   s.world.ortho_path = o.flight_ortho;
@@ -124,6 +123,7 @@ void RenderFlight(const NavBenchOptions& o, const std::string& waypoints, const 
     s.weather.intensity = 0.5;
     s.weather.distance_scale = 475.0 / 20;  // the simulator's advice for a nadir camera
   }
+  if (o.reuse && sim::IsRenderingOf(f.dir, s)) return;
   sim::RunSimulation(s);
 }
 

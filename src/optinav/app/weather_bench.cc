@@ -131,24 +131,15 @@ sim::SimulationOptions SimOptions(const Sequence& s, const WeatherBenchOptions& 
   return so;
 }
 
-// True when the folder holds a complete rendering of these options: the completion marker exists
-// (written last: a folder without it is an interrupted run) and names the same world, weather,
-// seed, scale and asphalt, with moving particles (not `sim --particles-still`).
+// True when the folder holds a complete rendering of these options (sim::IsRenderingOf: the
+// completion marker, written last, names the same world, weather, seed, scale, duration and
+// asphalt, with moving particles, by this renderer version).
 bool CompleteRendering(const Sequence& s, const WeatherBenchOptions& o) {
-  // Missing, unreadable or by another renderer version: rendered again.
-  if (!sim::IsCurrentRendering(s.dir)) return false;
-  const fs::path marker = fs::path(s.dir) / "sim_complete.json";
-  try {
-    const nlohmann::json j = nlohmann::json::parse(io::ReadFileToString(marker.string()));
-    return j.at("world") == WeatherBenchWorldName(s.world) && j.at("route") == "car" &&
-           j.at("weather") == s.condition.ToString() && j.at("seed") == s.seed &&
-           j.at("format") == "euroc" && std::abs(j.at("scale").get<double>() - o.scale) < 1e-9 &&
-           !j.value("particles_still", false) &&
-           j.value("asphalt", std::string("tiled")) == sim::AsphaltName(VariedAsphalt(s.world, o));
-  } catch (const std::exception& e) {
-    spdlog::warn("bench weather: not reusing {}: {}", marker.string(), e.what());
-    return false;
-  }
+  std::string why;
+  if (sim::IsRenderingOf(s.dir, SimOptions(s, o), &why)) return true;
+  if (fs::exists(fs::path(s.dir) / "sim_complete.json"))
+    spdlog::info("bench weather: not reusing {}: {}", s.dir, why);
+  return false;
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -204,6 +204,81 @@ std::string SimulationOptions::Check() const {
   return "";
 }
 
+namespace {
+
+// The parameters of a rendering as its completion marker records them (IsRenderingOf compares
+// these keys).
+nlohmann::ordered_json MarkerParameters(const SimulationOptions& options) {
+  nlohmann::ordered_json j;
+  j["world"] = WorldName(options.world.kind);
+  if (!options.world.ortho_path.empty()) j["ortho"] = options.world.ortho_path;
+  j["route"] = options.route;
+  j["weather"] = options.weather.ToString();
+  if (options.weather.particles_still) j["particles_still"] = true;
+  // Urban only; a marker without it (written before 2026-12-06) is tiled.
+  if (options.world.kind == WorldKind::kUrban)
+    j["asphalt"] = AsphaltName(options.world.varied_asphalt);
+  j["seed"] = options.seed;
+  j["format"] = FormatName(options.format);
+  j["scale"] = options.scale;
+  j["requested_duration_s"] = options.duration_s;  // 0: the whole car route, 60 s for drones
+  if (options.route != "car") {
+    j["speed_m_s"] = options.speed_m_s;
+    j["altitude_m"] = options.altitude_m;
+    j["drag_per_s"] = options.drag_per_s;
+    j["wind_m_s"] = {options.wind_m_s.x(), options.wind_m_s.y()};
+  }
+  return j;
+}
+
+}  // namespace
+
+bool IsRenderingOf(const std::string& dir, const SimulationOptions& options, std::string* why) {
+  auto fail = [&](const std::string& reason) {
+    if (why) *why = reason;
+    return false;
+  };
+  const fs::path marker = fs::path(dir) / kMarker;
+  if (!fs::is_regular_file(marker)) return fail("no " + marker.string() + " (not finished)");
+  nlohmann::ordered_json j;
+  try {
+    j = nlohmann::ordered_json::parse(io::ReadFileToString(marker.string()));
+  } catch (const std::exception& e) {
+    return fail(fmt::format("{}: {}", marker.string(), e.what()));
+  }
+  if (!j.is_object()) return fail(marker.string() + ": not a JSON object");
+  const nlohmann::ordered_json renderer =
+      j.contains("renderer") ? j.at("renderer") : nlohmann::ordered_json(1);
+  if (renderer != kRendererVersion) {
+    return fail(fmt::format("renderer {} (this binary's: {})", renderer.dump(), kRendererVersion));
+  }
+  const nlohmann::ordered_json want = MarkerParameters(options);
+  for (const char* key :
+       {"world", "ortho", "route", "weather", "particles_still", "asphalt", "seed", "format",
+        "scale", "requested_duration_s", "speed_m_s", "altitude_m", "drag_per_s", "wind_m_s"}) {
+    nlohmann::ordered_json have = j.contains(key) ? j.at(key) : nlohmann::ordered_json();
+    // Markers written before 2026-12-06: without the asphalt (tiled), and without the requested
+    // duration, which the rendered one stands for when it was reached (0: the whole route).
+    if (std::string(key) == "asphalt" && have.is_null() && want.contains(key)) have = "tiled";
+    if (std::string(key) == "requested_duration_s" && have.is_null() && j.contains("duration_s") &&
+        j.at("duration_s").is_number()) {
+      const double rendered = j.at("duration_s").get<double>();
+      // 0 asks for the whole car or waypoint route, which the marker cannot confirm.
+      const double asked = options.duration_s > 0     ? options.duration_s
+                           : options.route == "drone" ? 60.0
+                                                      : rendered;
+      if (std::abs(rendered - asked) < 1e-6) have = options.duration_s;
+    }
+    const nlohmann::ordered_json expected =
+        want.contains(key) ? want.at(key) : nlohmann::ordered_json();
+    if (have != expected) {
+      return fail(fmt::format("{}: {} (wanted {})", key, have.is_null() ? "absent" : have.dump(),
+                              expected.is_null() ? "absent" : expected.dump()));
+    }
+  }
+  return true;
+}
+
 bool IsCurrentRendering(const std::string& dir) {
   const fs::path marker = fs::path(dir) / kMarker;
   if (!fs::is_regular_file(marker)) return false;
@@ -452,16 +527,8 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
   nlohmann::ordered_json j;
   j["generator"] = "optinav sim";
   j["renderer"] = kRendererVersion;
-  j["world"] = WorldName(world.kind);
-  if (!options.world.ortho_path.empty()) j["ortho"] = options.world.ortho_path;
-  j["route"] = options.route;
-  j["weather"] = options.weather.ToString();
-  if (options.weather.particles_still) j["particles_still"] = true;
-  // Urban only; a marker without it (written before 2026-12-06) is tiled.
-  if (world.kind == WorldKind::kUrban) j["asphalt"] = AsphaltName(options.world.varied_asphalt);
-  j["seed"] = options.seed;
-  j["format"] = FormatName(options.format);
-  j["scale"] = options.scale;
+  const nlohmann::ordered_json parameters = MarkerParameters(options);
+  for (const auto& [key, value] : parameters.items()) j[key] = value;
   j["image_size"] = {rig.left.width, rig.left.height};
   j["camera_rate_hz"] = rig.camera_rate_hz;
   j["duration_s"] = summary.duration_s;
@@ -477,12 +544,6 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
   }
   if (options.baro.enabled) j["baro_samples"] = summary.baro_samples;
   j["gnss_origin"] = {gnss_opt.origin.lat_deg, gnss_opt.origin.lon_deg, gnss_opt.origin_height_m};
-  if (drone) {
-    j["speed_m_s"] = options.speed_m_s;
-    j["altitude_m"] = options.altitude_m;
-    j["drag_per_s"] = options.drag_per_s;
-    j["wind_m_s"] = {options.wind_m_s.x(), options.wind_m_s.y()};
-  }
   // Every data file is in place: the folder stops being refused by the readers, then the marker
   // tells the next run and the benchmarks that it is complete.
   io::ClearInProgress(options.out_dir);

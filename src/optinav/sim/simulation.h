@@ -71,6 +71,15 @@ inline constexpr int kRendererVersion = 2;
 // False for a missing or unreadable marker.
 bool IsCurrentRendering(const std::string& dir);
 
+// Whether `dir` holds a finished rendering of `options` by this renderer version: its
+// sim_complete.json names the same world (and orthophoto), route, weather, frozen particles or
+// not, asphalt (a marker without the key is tiled), seed, format, scale, requested duration and,
+// on drone routes, speed, altitude, drag and wind. The sensors' options (IMU, GNSS, baro, nadir
+// camera, rig) are not compared. When it does not, `why` (if given) names the first difference.
+// The benchmarks' --reuse keeps a sequence only when this holds.
+bool IsRenderingOf(const std::string& dir, const SimulationOptions& options,
+                   std::string* why = nullptr);
+
 // Runs the simulation. `progress(done, total)` is called after each stereo frame. Throws Error
 // for bad input (unknown route file, unusable orthophoto, output folder not empty, write
 // failures), leaving no completion marker.

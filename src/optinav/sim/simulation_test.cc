@@ -4,9 +4,11 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <sstream>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -241,6 +243,69 @@ TEST(Simulation, SameSeedGivesByteIdenticalOutput) {
   ASSERT_GT(a.size(), 10u);
   EXPECT_TRUE(a == b);
   EXPECT_FALSE(a == c);
+}
+
+// The benchmarks' --reuse: a rendering is of the options only when its marker names the same
+// parameters; markers written before the asphalt and the requested duration were recorded still
+// match by what they do record.
+TEST(Simulation, IsRenderingOfComparesTheRecordedParameters) {
+  const fs::path dir = testing::MakeTempDir("sim_rendering_of");
+  SimulationOptions o = Small((dir / "seq").string(), DatasetFormat::kEuroc);
+  o.duration_s = 0.3;
+  o.weather = ParseWeather("fog:50");
+  RunSimulation(o);
+  std::string why;
+  EXPECT_TRUE(IsRenderingOf(o.out_dir, o, &why)) << why;
+  auto differs = [&](const std::string& key, const std::function<void(SimulationOptions*)>& edit) {
+    SimulationOptions other = o;
+    edit(&other);
+    why.clear();
+    EXPECT_FALSE(IsRenderingOf(o.out_dir, other, &why)) << key;
+    EXPECT_EQ(why.rfind(key + ":", 0), 0u) << why;
+  };
+  differs("weather", [](SimulationOptions* x) { x->weather = ParseWeather("fog:75"); });
+  differs("particles_still", [](SimulationOptions* x) { x->weather.particles_still = true; });
+  differs("asphalt", [](SimulationOptions* x) { x->world.varied_asphalt = false; });
+  differs("seed", [](SimulationOptions* x) { x->seed = 12; });
+  differs("format", [](SimulationOptions* x) { x->format = DatasetFormat::kAirsim; });
+  differs("scale", [](SimulationOptions* x) { x->scale = 0.3; });
+  differs("requested_duration_s", [](SimulationOptions* x) { x->duration_s = 0.4; });
+  differs("route", [](SimulationOptions* x) { x->route = "drone"; });
+  // The sensors' options are not compared.
+  SimulationOptions noisier = o;
+  noisier.gnss.sigma_m = 3;
+  EXPECT_TRUE(IsRenderingOf(o.out_dir, noisier));
+
+  // A marker of before 2026-12-06: no asphalt (tiled) and no requested duration (the rendered
+  // one stands for it).
+  const fs::path marker = fs::path(o.out_dir) / "sim_complete.json";
+  nlohmann::json j = nlohmann::json::parse(testing::ReadFile(marker));
+  EXPECT_EQ(j.at("asphalt"), "varied");
+  EXPECT_EQ(j.at("requested_duration_s"), 0.3);
+  j.erase("asphalt");
+  j.erase("requested_duration_s");
+  testing::WriteFile(marker, j.dump(2));
+  EXPECT_FALSE(IsRenderingOf(o.out_dir, o, &why));
+  EXPECT_EQ(why, "asphalt: \"tiled\" (wanted \"varied\")");
+  SimulationOptions tiled = o;
+  tiled.world.varied_asphalt = false;
+  EXPECT_TRUE(IsRenderingOf(o.out_dir, tiled, &why)) << why;
+  tiled.duration_s = 0.4;
+  EXPECT_FALSE(IsRenderingOf(o.out_dir, tiled));
+  tiled.duration_s = 0;  // the whole route: the marker cannot tell, so it is taken
+  EXPECT_TRUE(IsRenderingOf(o.out_dir, tiled));
+
+  // Another renderer version, a broken marker, none.
+  j["renderer"] = kRendererVersion + 1;
+  testing::WriteFile(marker, j.dump(2));
+  EXPECT_FALSE(IsRenderingOf(o.out_dir, tiled, &why));
+  EXPECT_EQ(why.rfind("renderer ", 0), 0u) << why;
+  testing::WriteFile(marker, "{\"renderer\": ");
+  EXPECT_FALSE(IsRenderingOf(o.out_dir, tiled, &why));
+  EXPECT_NE(why.find("sim_complete.json"), std::string::npos) << why;
+  fs::remove(marker);
+  EXPECT_FALSE(IsRenderingOf(o.out_dir, tiled, &why));
+  EXPECT_NE(why.find("not finished"), std::string::npos) << why;
 }
 
 TEST(Simulation, RefusesANonEmptyFolderAndBadInputBeforeWriting) {
