@@ -4,6 +4,7 @@
 #include <atomic>
 #include <filesystem>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include <fmt/format.h>
@@ -281,19 +282,16 @@ std::pair<size_t, size_t> LoopsOffTruth(const Trajectory& truth, const nlohmann:
                                         double tolerance_m) {
   size_t checked = 0, off = 0;
   if (truth.empty() || !truth.has_timestamps()) return {0, 0};
-  auto nearest = [&](double t_s) {
-    const int64_t t = static_cast<int64_t>(std::llround(t_s * 1e9));
-    auto it = std::lower_bound(truth.t_ns.begin(), truth.t_ns.end(), t);
-    if (it == truth.t_ns.end()) --it;
-    if (it != truth.t_ns.begin() && t - *std::prev(it) < *it - t) --it;
-    return truth.pose(static_cast<size_t>(it - truth.t_ns.begin()));
+  auto at = [&](const nlohmann::json& t_s) {
+    return truth.InterpolateAt(static_cast<int64_t>(std::llround(t_s.get<double>() * 1e9)));
   };
   for (const nlohmann::json& l : loops) {
     if (!l.contains("old_body_from_new_body")) continue;
     const std::vector<double> v = l.at("old_body_from_new_body").get<std::vector<double>>();
-    if (v.size() != 7) continue;
-    const Rigid3d truth_old_from_new = nearest(l.at("old_keyframe_s").get<double>()).Inverse() *
-                                       nearest(l.at("new_keyframe_s").get<double>());
+    const std::optional<Rigid3d> old_pose = at(l.at("old_keyframe_s"));
+    const std::optional<Rigid3d> new_pose = at(l.at("new_keyframe_s"));
+    if (v.size() != 7 || !old_pose || !new_pose) continue;
+    const Rigid3d truth_old_from_new = old_pose->Inverse() * *new_pose;
     ++checked;
     if ((Eigen::Vector3d(v[0], v[1], v[2]) - truth_old_from_new.translation).norm() > tolerance_m)
       ++off;

@@ -170,9 +170,10 @@ SlurmResources WeatherBenchTaskResources(const WeatherBenchOptions& options);
 
 // Checks a run's loops (`optinav vio --stats` "loops", each with "old_keyframe_s",
 // "new_keyframe_s" and "old_body_from_new_body" [tx ty tz qx qy qz qw]) against `truth`: the
-// truth's translation between the two keyframes (nearest poses in time) is compared with the
-// measured one. Returns {loops checked, loops off by more than `tolerance_m`}; loops without the
-// relative pose (stats before it was written) are not checked.
+// truth's translation between the two keyframes (interpolated at their times; loops outside the
+// truth are not checked) is compared with the measured one. Returns {loops checked, loops off by
+// more than `tolerance_m`}; loops without the relative pose (stats before it was written) are not
+// checked.
 std::pair<size_t, size_t> LoopsOffTruth(const Trajectory& truth, const nlohmann::json& loops,
                                         double tolerance_m = 1.0);
 

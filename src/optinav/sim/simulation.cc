@@ -279,17 +279,6 @@ bool IsRenderingOf(const std::string& dir, const SimulationOptions& options, std
   return true;
 }
 
-bool IsCurrentRendering(const std::string& dir) {
-  const fs::path marker = fs::path(dir) / kMarker;
-  if (!fs::is_regular_file(marker)) return false;
-  try {
-    const nlohmann::json j = nlohmann::json::parse(io::ReadFileToString(marker.string()));
-    return j.value("renderer", 1) == kRendererVersion;
-  } catch (const std::exception&) {
-    return false;
-  }
-}
-
 SimulationSummary RunSimulation(const SimulationOptions& options,
                                 const std::function<void(size_t, size_t)>& progress) {
   if (const std::string m = options.Check(); !m.empty()) throw Error(m);

@@ -67,10 +67,6 @@ struct SimulationSummary {
 // 2 (2026-12-05): trilinear sampling.
 inline constexpr int kRendererVersion = 2;
 
-// Whether `dir` holds a finished rendering (its sim_complete.json) by this renderer version.
-// False for a missing or unreadable marker.
-bool IsCurrentRendering(const std::string& dir);
-
 // Whether `dir` holds a finished rendering of `options` by this renderer version: its
 // sim_complete.json names the same world (and orthophoto), route, weather, frozen particles or
 // not, asphalt (a marker without the key is tiled), seed, format, scale, requested duration and,
