@@ -125,6 +125,8 @@ std::map<std::string, Section> OptionSections(VioOptions& o) {
         {"keyframe_min_tracked_ratio", &f.keyframe_min_tracked_ratio},
         {"keyframe_min_parallax_px", &f.keyframe_min_parallax_px},
         {"stereo_only_keyframe_min_tracked_ratio", &f.stereo_only_keyframe_min_tracked_ratio},
+        {"stereo_only_local_norm_sigma_px", &f.stereo_only_local_norm_sigma_px},
+        {"stereo_only_min_corner_isotropy", &f.stereo_only_min_corner_isotropy},
         {"stereo_only_keyframe_min_parallax_px", &f.stereo_only_keyframe_min_parallax_px}}},
       {"backend",
        {{"window_keyframes", &b.window_keyframes},
@@ -185,6 +187,8 @@ std::map<std::string, Section> OptionSections(VioOptions& o) {
         {"search_radius_fraction", &l.search_radius_fraction},
         {"max_view_angle_deg", &l.max_view_angle_deg},
         {"max_candidates", &l.max_candidates},
+        {"stereo_only_search_radius_fraction", &l.stereo_only_search_radius_fraction},
+        {"stereo_only_max_candidates", &l.stereo_only_max_candidates},
         {"match_ratio", &l.match_ratio},
         {"pnp_px", &l.pnp_px},
         {"min_inliers", &l.min_inliers},
@@ -334,15 +338,6 @@ BackendOptions WithMode(BackendOptions b, const VioOptions& o, const ImuNoise& n
   return b;
 }
 
-// Stereo-only mode: the frontend's stereo-only keyframe thresholds.
-FrontendOptions FrontendForMode(FrontendOptions f, VioMode mode) {
-  if (mode == VioMode::kStereo) {
-    f.keyframe_min_tracked_ratio = f.stereo_only_keyframe_min_tracked_ratio;
-    f.keyframe_min_parallax_px = f.stereo_only_keyframe_min_parallax_px;
-  }
-  return f;
-}
-
 double Yaw(const Eigen::Quaterniond& q) {
   const Eigen::Matrix3d r = q.toRotationMatrix();
   return std::atan2(r(1, 0), r(0, 0));
@@ -350,13 +345,25 @@ double Yaw(const Eigen::Quaterniond& q) {
 
 }  // namespace
 
+FrontendOptions FrontendOptionsForMode(FrontendOptions f, VioMode mode) {
+  if (mode == VioMode::kStereo) {
+    f.keyframe_min_tracked_ratio = f.stereo_only_keyframe_min_tracked_ratio;
+    f.keyframe_min_parallax_px = f.stereo_only_keyframe_min_parallax_px;
+    if (f.stereo_only_local_norm_sigma_px >= 0)
+      f.local_norm_sigma_px = f.stereo_only_local_norm_sigma_px;
+    if (f.stereo_only_min_corner_isotropy >= 0)
+      f.min_corner_isotropy = f.stereo_only_min_corner_isotropy;
+  }
+  return f;
+}
+
 VioEstimator::VioEstimator(const camera::StereoRig& rig, const Rigid3d& body_from_cam0,
                            const ImuNoise& imu_noise, const VioOptions& options)
     : rig_(rig),
       body_from_cam0_(body_from_cam0),
       imu_noise_(imu_noise),
       options_(options),
-      frontend_(rig, FrontendForMode(options.frontend, options.mode)),
+      frontend_(rig, FrontendOptionsForMode(options.frontend, options.mode)),
       backend_(WithMode(options.backend, options, imu_noise), MakeExtrinsics(rig, body_from_cam0)) {
   const std::string problem = options_.Check();
   OPTINAV_CHECK_MSG(problem.empty(), problem);

@@ -169,6 +169,10 @@ struct VioOptions {
   std::string Check() const;
 };
 
+// The frontend options `mode` runs with: in stereo-only mode the stereo_only_* keyframe
+// thresholds, and the stereo_only_* fog treatment when set (>= 0).
+FrontendOptions FrontendOptionsForMode(FrontendOptions f, VioMode mode);
+
 // Reads a YAML config (every key optional, defaults above; see config/vio_euroc.yaml).
 // Throws Error naming the file, line and key on unknown keys or bad values.
 VioOptions LoadVioOptions(const std::string& path);

@@ -142,6 +142,11 @@ std::string FrontendOptions::Check() const {
   if (!(keyframe_min_tracked_ratio >= 0 && keyframe_min_tracked_ratio <= 1))
     return "keyframe_min_tracked_ratio must be in [0, 1]";
   if (!(keyframe_min_parallax_px > 0)) return "keyframe_min_parallax_px must be > 0";
+  if (!(stereo_only_local_norm_sigma_px >= 0 || stereo_only_local_norm_sigma_px == -1))
+    return "stereo_only_local_norm_sigma_px must be >= 0 or -1 (as local_norm_sigma_px)";
+  if (!((stereo_only_min_corner_isotropy >= 0 && stereo_only_min_corner_isotropy < 1) ||
+        stereo_only_min_corner_isotropy == -1))
+    return "stereo_only_min_corner_isotropy must be in [0, 1) or -1 (as min_corner_isotropy)";
   if (!(stereo_only_keyframe_min_tracked_ratio >= 0 && stereo_only_keyframe_min_tracked_ratio <= 1))
     return "stereo_only_keyframe_min_tracked_ratio must be in [0, 1]";
   if (!(stereo_only_keyframe_min_parallax_px > 0))

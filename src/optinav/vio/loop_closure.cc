@@ -41,6 +41,11 @@ std::string LoopClosureOptions::Check() const {
   if (!(max_view_angle_deg > 0 && max_view_angle_deg <= 180))
     return "loop_closure.max_view_angle_deg must be in (0, 180]";
   if (max_candidates < 1) return "loop_closure.max_candidates must be >= 1";
+  if (!(stereo_only_search_radius_fraction >= 0 || stereo_only_search_radius_fraction == -1))
+    return "loop_closure.stereo_only_search_radius_fraction must be >= 0 or -1 (as "
+           "search_radius_fraction)";
+  if (stereo_only_max_candidates < 1 && stereo_only_max_candidates != -1)
+    return "loop_closure.stereo_only_max_candidates must be >= 1 or -1 (as max_candidates)";
   if (!(match_ratio > 0 && match_ratio <= 1)) return "loop_closure.match_ratio must be in (0, 1]";
   if (min_inliers < 6) return "loop_closure.min_inliers must be >= 6";
   if (!(guided_radius_px >= 0)) return "loop_closure.guided_radius_px must be >= 0";
@@ -201,6 +206,12 @@ LoopCloser::LoopCloser(const camera::StereoRig& rig, const Rigid3d& body_from_ca
       options_(options),
       gravity_aligned_(gravity_aligned) {
   if (const std::string e = options.Check(); !e.empty()) throw Error(e, {.field = "loop_closure"});
+  if (!gravity_aligned) {
+    if (options.stereo_only_search_radius_fraction >= 0)
+      options_.search_radius_fraction = options.stereo_only_search_radius_fraction;
+    if (options.stereo_only_max_candidates >= 0)
+      options_.max_candidates = options.stereo_only_max_candidates;
+  }
   // The same detector twice, differing in the FAST threshold only.
   const auto orb = [&](int fast_threshold) {
     return cv::ORB::create(options.orb_features, 1.2f, 8, 31, 0, 2, cv::ORB::HARRIS_SCORE, 31,

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <map>
 #include <random>
+#include <utility>
 
 #include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
@@ -86,6 +87,25 @@ TEST(LoopClosure, NoLoopNoCorrection) {
   EXPECT_TRUE(closer.CorrectionAt(12'000'000'000LL).translation.isZero());
 }
 
+// A 640x480 stereo rig (f 320 px, 0.125 m baseline) and a textured scene 10 m ahead (4 px of
+// disparity) seen by it: `contrast` x the texture blended with a bright airlight as fog does.
+camera::StereoRig TexturedSceneRig() {
+  camera::StereoRig rig;
+  rig.left = rig.right = camera::PinholeCamera::FromHorizontalFov(640, 480, M_PI / 2);
+  rig.right_from_left.translation = {-0.125, 0, 0};  // f 320 px: 4 px at 10 m
+  return rig;
+}
+std::pair<cv::Mat, cv::Mat> TexturedScenePair(uint64_t seed, double contrast = 1.0) {
+  cv::Mat noise(480 + 8, 640 + 8, CV_32F);
+  cv::RNG rng(seed);
+  rng.fill(noise, cv::RNG::UNIFORM, 0, 255);
+  cv::GaussianBlur(noise, noise, cv::Size(0, 0), 1.5);
+  cv::Mat texture, faded;
+  cv::normalize(noise, texture, 0, 255, cv::NORM_MINMAX, CV_8U);
+  texture.convertTo(faded, CV_8U, contrast, 200 * (1 - contrast));
+  return {faded(cv::Rect(4, 4, 640, 480)).clone(), faded(cv::Rect(8, 4, 640, 480)).clone()};
+}
+
 TEST(LoopClosure, FadedKeyframesAreDescribedAgainWithoutAnImuOnly) {
   // A textured scene 10 m ahead (4 px of disparity), clear and faded as fog fades it (the
   // airlight blended in: 25 % of the contrast left). ORB at FAST threshold 20 finds fewer than
@@ -93,23 +113,9 @@ TEST(LoopClosure, FadedKeyframesAreDescribedAgainWithoutAnImuOnly) {
   // it again after CLAHE; the stereo-inertial one does not by default (orb_retry_stereo_imu: on
   // urban dust 100 % at 800x600 the retried keyframes verified loops one period of the road
   // texture off, docs/VIO.md "2026-12-06"), unless asked to.
-  camera::StereoRig rig;
-  rig.left = rig.right = camera::PinholeCamera::FromHorizontalFov(640, 480, M_PI / 2);
-  rig.right_from_left.translation = {-0.125, 0, 0};  // f 320 px: 4 px at 10 m
-  cv::Mat noise(480 + 8, 640 + 8, CV_32F);
-  cv::RNG rng(7);
-  rng.fill(noise, cv::RNG::UNIFORM, 0, 255);
-  cv::GaussianBlur(noise, noise, cv::Size(0, 0), 1.5);
-  cv::Mat clear;
-  cv::normalize(noise, clear, 0, 255, cv::NORM_MINMAX, CV_8U);
-  const auto pair = [&](double contrast) {
-    cv::Mat faded;
-    clear.convertTo(faded, CV_8U, contrast, 200 * (1 - contrast));
-    return std::make_pair(faded(cv::Rect(4, 4, 640, 480)).clone(),
-                          faded(cv::Rect(8, 4, 640, 480)).clone());
-  };
-  const auto [clear_left, clear_right] = pair(1.0);
-  const auto [fog_left, fog_right] = pair(0.25);
+  const camera::StereoRig rig = TexturedSceneRig();
+  const auto [clear_left, clear_right] = TexturedScenePair(7);
+  const auto [fog_left, fog_right] = TexturedScenePair(7, 0.25);
   std::vector<cv::KeyPoint> kp;
   cv::ORB::create(2000)->detect(clear_left, kp);
   const size_t clear_features = kp.size();
@@ -133,6 +139,49 @@ TEST(LoopClosure, FadedKeyframesAreDescribedAgainWithoutAnImuOnly) {
   EXPECT_EQ(faded(false, false), 1u) << "stereo-only: the faded keyframe, not the clear one";
   EXPECT_EQ(faded(true, false), 0u) << "stereo-inertial: off by default";
   EXPECT_EQ(faded(true, true), 1u) << "stereo-inertial with orb_retry_stereo_imu";
+}
+
+TEST(LoopClosure, StereoOnlyClosersSearchTheirOwnRadius) {
+  // One lap of a 400 m circle, a keyframe every 4 m, whose odometry drifts sideways by 3 % of
+  // the path: back at the start it is 12 m off. The start's textured stereo pair is seen again
+  // there (the other keyframes see nothing). A stereo-only closer with
+  // stereo_only_search_radius_fraction 0.03 (5 + 12 = 17 m) tries the first keyframe and closes
+  // the loop; the stereo-inertial closer keeps search_radius_fraction 0.01 (5 + 4 = 9 m) and so
+  // does a stereo-only one when the option is -1.
+  const camera::StereoRig rig = TexturedSceneRig();
+  const auto [left, right] = TexturedScenePair(11);
+  const cv::Mat black = cv::Mat::zeros(480, 640, CV_8U);
+  constexpr int kKeyframes = 100;
+  constexpr double kStep = 4, kRadius = kKeyframes * kStep / (2 * M_PI);
+  const auto loops = [&](bool gravity_aligned, double stereo_only_fraction) {
+    LoopClosureOptions o;
+    o.support_min_path_m = 0;   // one loop, no partner
+    o.max_loop_residual_m = 0;  // kept although one loop cannot pull 12 m against its Cauchy loss
+    o.stereo_only_search_radius_fraction = stereo_only_fraction;
+    LoopCloser closer(rig, Rigid3d::Identity(), o, gravity_aligned);
+    for (int k = 0; k <= kKeyframes; ++k) {
+      const double a = k * kStep / kRadius;
+      StateEstimate s;
+      s.t_ns = int64_t{k} * 500'000'000;
+      s.world_from_body =
+          Rigid3d(Eigen::Quaterniond(Eigen::AngleAxisd(a, Eigen::Vector3d::UnitZ())),
+                  Eigen::Vector3d(kRadius * std::sin(a),
+                                  kRadius * (1 - std::cos(a)) + 0.03 * k * kStep, 0));
+      const bool seen = k == 0 || k == kKeyframes;
+      closer.AddKeyframe(s, seen ? left : black, seen ? right : black);
+    }
+    closer.Finish();
+    return closer.loops().size();
+  };
+  EXPECT_EQ(loops(false, 0.03), 1u) << "stereo-only: 17 m radius";
+  EXPECT_EQ(loops(false, -1), 0u) << "stereo-only, option unset: 9 m";
+  EXPECT_EQ(loops(true, 0.03), 0u) << "stereo-inertial: 9 m";
+  LoopClosureOptions bad;
+  bad.stereo_only_search_radius_fraction = -0.5;
+  EXPECT_NE(bad.Check().find("stereo_only_search_radius_fraction"), std::string::npos);
+  bad = {};
+  bad.stereo_only_max_candidates = 0;
+  EXPECT_NE(bad.Check().find("stereo_only_max_candidates"), std::string::npos);
 }
 
 // A circle of 20 m radius driven at 5 m/s, a keyframe every 0.1 m after `parked` keyframes

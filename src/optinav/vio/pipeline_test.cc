@@ -694,6 +694,31 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(VioOptionsYaml(file), VioOptionsYaml(d));
 }
 
+// The stereo_only_* frontend options replace theirs in stereo-only mode only, and -1 leaves the
+// shared value.
+TEST(VioConfig, StereoOnlyFrontendOptionsApplyInStereoModeOnly) {
+  FrontendOptions f;
+  f.local_norm_sigma_px = 0;
+  f.min_corner_isotropy = 0;
+  f.stereo_only_local_norm_sigma_px = 4;
+  f.stereo_only_min_corner_isotropy = 0.05;
+  const FrontendOptions stereo = FrontendOptionsForMode(f, VioMode::kStereo);
+  EXPECT_EQ(stereo.local_norm_sigma_px, 4);
+  EXPECT_EQ(stereo.min_corner_isotropy, 0.05);
+  EXPECT_EQ(stereo.keyframe_min_parallax_px, f.stereo_only_keyframe_min_parallax_px);
+  const FrontendOptions imu = FrontendOptionsForMode(f, VioMode::kStereoImu);
+  EXPECT_EQ(imu.local_norm_sigma_px, 0);
+  EXPECT_EQ(imu.min_corner_isotropy, 0);
+  EXPECT_EQ(imu.keyframe_min_parallax_px, f.keyframe_min_parallax_px);
+  f.local_norm_sigma_px = 3;
+  f.stereo_only_local_norm_sigma_px = -1;
+  f.stereo_only_min_corner_isotropy = -1;
+  EXPECT_EQ(FrontendOptionsForMode(f, VioMode::kStereo).local_norm_sigma_px, 3);
+  EXPECT_EQ(FrontendOptionsForMode(f, VioMode::kStereo).min_corner_isotropy, 0);
+  f.stereo_only_local_norm_sigma_px = -2;
+  EXPECT_NE(f.Check().find("stereo_only_local_norm_sigma_px"), std::string::npos);
+}
+
 // The effective configuration of a run: every option, loading back to the same options.
 TEST(VioConfig, OptionsYamlLoadsBackToTheSameOptions) {
   const auto dir = optinav::testing::MakeTempDir("vio_options_yaml");

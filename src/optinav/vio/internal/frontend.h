@@ -143,6 +143,12 @@ struct FrontendOptions {
   // 3509 frames) and the window spans under 2 m.
   double stereo_only_keyframe_min_tracked_ratio = 0.5;
   double stereo_only_keyframe_min_parallax_px = 40.0;
+  // Stereo-only mode uses these instead of local_norm_sigma_px and min_corner_isotropy when they
+  // are >= 0 (-1: the same as in stereo-imu mode). Without an IMU nothing observes the tilt, and
+  // the haze's pull on KLT (local_norm_sigma_px above) pitches the stereo-only odometry by degrees
+  // per second on the terrain route in fog; with an IMU gravity holds the tilt.
+  double stereo_only_local_norm_sigma_px = -1.0;
+  double stereo_only_min_corner_isotropy = -1.0;
 
   std::string Check() const;
 };
