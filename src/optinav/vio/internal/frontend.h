@@ -146,7 +146,9 @@ struct FrontendOptions {
   // Stereo-only mode uses these instead of local_norm_sigma_px and min_corner_isotropy when they
   // are >= 0 (-1: the same as in stereo-imu mode). Without an IMU nothing observes the tilt, and
   // the haze's pull on KLT (local_norm_sigma_px above) pitches the stereo-only odometry by degrees
-  // per second on the terrain route in fog; with an IMU gravity holds the tilt.
+  // per second on the terrain route in fog; with an IMU gravity holds the tilt. Off: with 4 px
+  // and 0.05 the urban route lost its loops in leaves (3.22 -> 15.42 m) and fog 100 % (6.92 ->
+  // 21.71 m; docs/VIO.md, 2026-12-06 evening).
   double stereo_only_local_norm_sigma_px = -1.0;
   double stereo_only_min_corner_isotropy = -1.0;
 

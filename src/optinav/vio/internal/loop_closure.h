@@ -12,7 +12,8 @@
 // 3D points of the left camera frame.
 // Detection, at each keyframe: earlier keyframes of the same track at least `min_separation_s`
 // and `min_separation_m` of path back, whose odometry position lies within
-// `search_radius_m + search_radius_fraction * path since them` of the current one (the
+// `search_radius_m + search_radius_fraction * path since them` (without an IMU the
+// stereo_only_* fraction and candidate count) of the current one (the
 // odometry's, not the corrected: a wrong loop kept for a while must not steer the search) and
 // whose optical axis is within `max_view_angle_deg` of the current one, nearest
 // first (at most `max_candidates`): their 3D points against the current left features (Hamming,
