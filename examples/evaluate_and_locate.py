@@ -4,12 +4,14 @@
 Run it with Debian's interpreter and the module built by CMake:
     PYTHONPATH=build/python /usr/bin/python3 examples/evaluate_and_locate.py
 It reads the project's test data (../shared/data, or $OPTINAV_SHARED_DATA) and writes into a
-temporary folder. ctest runs it as python/example.
+temporary folder, removed by the last cell unless $OPTINAV_KEEP_TEST_DIRS is set. ctest runs it
+as python/example.
 """
 
 # %% Setup
 import os
 import pathlib
+import shutil
 import tempfile
 
 import numpy as np
@@ -65,3 +67,9 @@ east_m = (fix["lon"] - truth_latlon[1]) * 111_200 * np.cos(np.radians(truth_latl
 error_m = float(np.hypot(north_m, east_m))
 print(f"fix error {error_m:.1f} m")
 assert fix["localized"] and error_m < 25, fix
+
+# %% Clean up the temporary folder (kept with OPTINAV_KEEP_TEST_DIRS=1, to look at the map and frame)
+if os.environ.get("OPTINAV_KEEP_TEST_DIRS"):
+    print(f"kept {WORK}")
+else:
+    shutil.rmtree(WORK)
