@@ -101,39 +101,57 @@ std::string Simulate(const std::string& name, const std::string& route, double d
   return o.out_dir;
 }
 
-// Each stereo observation's disparity error (measured - true, px) on five rendered urban frames
-// at the benchmark's 400x300 in `weather`: its right-image x against where the z-buffer puts the
-// left observation's point (depth interpolated at the sub-pixel corner, corners off depth
-// edges), split at 15 m.
-void DisparityErrors(const std::string& weather, std::vector<double>* near_out,
-                     std::vector<double>* far_out) {
+// Five urban frames of the car route at the benchmark's 400x300, clear, with their z-buffers.
+struct DisparityScene {
+  struct Frame {
+    int64_t t_ns = 0;
+    Rigid3d world_from_left, world_from_right;
+    cv::Mat left, right, depth, depth_right;
+  };
+  sim::SensorRig rig = sim::CarRig().Scaled(0.5);
+  std::vector<Frame> frames;
+};
+
+DisparityScene RenderDisparityScene() {
   sim::WorldOptions wo;
   wo.seed = 5;
   const sim::World world = sim::MakeWorld(wo);
   const sim::BodyTrajectory car =
       sim::MakeCarTrajectory(sim::CarRouteOptions::Urban(), world.ground_height, 0);
-  const sim::SensorRig rig = sim::CarRig().Scaled(0.5);
   const sim::Renderer renderer(world);
+  DisparityScene scene;
+  for (double t : {8.0, 30.0, 55.0, 70.0, 90.0}) {
+    DisparityScene::Frame f;
+    f.t_ns = static_cast<int64_t>(t * 1e9);
+    const Rigid3d world_from_body = car.At(f.t_ns).world_from_body;
+    f.world_from_left = world_from_body * scene.rig.body_from_left;
+    f.world_from_right = world_from_body * scene.rig.body_from_right;
+    renderer.Render(scene.rig.left, f.world_from_left, &f.left, &f.depth);
+    renderer.Render(scene.rig.right, f.world_from_right, &f.right, &f.depth_right);
+    scene.frames.push_back(std::move(f));
+  }
+  return scene;
+}
+
+// Each stereo observation's disparity error (measured - true, px) on the scene's frames with the
+// image effects of `weather` (haze and particles; the ground's surface stays clear): its
+// right-image x against where the z-buffer puts the left observation's point (depth interpolated
+// at the sub-pixel corner, corners off depth edges), split at 15 m.
+void DisparityErrors(const DisparityScene& scene, const std::string& weather,
+                     std::vector<double>* near, std::vector<double>* far) {
+  const sim::SensorRig& rig = scene.rig;
   const camera::StereoRig stereo{rig.left, rig.right,
                                  rig.body_from_right.Inverse() * rig.body_from_left};
-  std::vector<double> near, far;
-  for (double t : {8.0, 30.0, 55.0, 70.0, 90.0}) {
-    const Rigid3d world_from_body = car.At(static_cast<int64_t>(t * 1e9)).world_from_body;
-    const Rigid3d world_from_left = world_from_body * rig.body_from_left;
-    const Rigid3d world_from_right = world_from_body * rig.body_from_right;
-    cv::Mat left, right, depth, grey_left, grey_right;
-    renderer.Render(rig.left, world_from_left, &left, &depth);
-    cv::Mat depth_right;
-    renderer.Render(rig.right, world_from_right, &right, &depth_right);
-    const sim::WeatherSpec spec = sim::ParseWeather(weather);
-    const int64_t t_ns = static_cast<int64_t>(t * 1e9);
-    sim::ApplyWeather(left, depth, rig.left, world_from_left, t_ns, spec, 1);
-    sim::ApplyWeather(right, depth_right, rig.right, world_from_right, t_ns, spec, 1);
+  const sim::WeatherSpec spec = sim::ParseWeather(weather);
+  for (const DisparityScene::Frame& f : scene.frames) {
+    cv::Mat left = f.left.clone(), right = f.right.clone(), grey_left, grey_right;
+    sim::ApplyWeather(left, f.depth, rig.left, f.world_from_left, f.t_ns, spec, 1);
+    sim::ApplyWeather(right, f.depth_right, rig.right, f.world_from_right, f.t_ns, spec, 1);
     cv::cvtColor(left, grey_left, cv::COLOR_BGR2GRAY);
     cv::cvtColor(right, grey_right, cv::COLOR_BGR2GRAY);
     StereoFrontend frontend(stereo, FrontendOptions());
-    const FrontendOutput out =
-        frontend.Process(static_cast<int64_t>(t * 1e9), grey_left, grey_right, std::nullopt, true);
+    const FrontendOutput out = frontend.Process(f.t_ns, grey_left, grey_right, std::nullopt, true);
+    const cv::Mat& depth = f.depth;
     for (const StereoObservation& obs : out.observations) {
       if (!obs.right) continue;
       const auto left_px = rig.left.Project(obs.left.homogeneous());
@@ -150,16 +168,14 @@ void DisparityErrors(const std::string& weather, std::vector<double>* near_out,
       const double d =
           (1 - ay) * ((1 - ax) * depth.at<float>(y0, x0) + ax * depth.at<float>(y0, x0 + 1)) +
           ay * ((1 - ax) * depth.at<float>(y0 + 1, x0) + ax * depth.at<float>(y0 + 1, x0 + 1));
-      const Eigen::Vector3d p_world = world_from_left * (rig.left.Unproject(px) * d);
-      const auto truth = rig.right.Project(world_from_right.Inverse() * p_world);
+      const Eigen::Vector3d p_world = f.world_from_left * (rig.left.Unproject(px) * d);
+      const auto truth = rig.right.Project(f.world_from_right.Inverse() * p_world);
       if (!truth) continue;
       // Measured minus true disparity.
       const double error = truth->x() - right_px->x();
-      (d < 15 ? near : far).push_back(error);
+      (d < 15 ? near : far)->push_back(error);
     }
   }
-  *near_out = near;
-  *far_out = far;
 }
 
 // The frontend's stereo matches carry no disparity bias, in clear weather and in the haze and
@@ -170,10 +186,11 @@ void DisparityErrors(const std::string& weather, std::vector<double>* near_out,
 // bound: the weather spreads the errors (median |error| near 0.34 px clear, 0.57 px in dust
 // 100 %) but does not shift them, so the stereo odometry's drift in dust is not a scale bias.
 TEST(SimAccuracy, FrontendStereoDisparityHasNoBias) {
+  const DisparityScene scene = RenderDisparityScene();  // rendered once, each weather on a copy
   for (const char* weather : {"none", "fog:100", "dust:100", "leaves:50"}) {
     SCOPED_TRACE(weather);
     std::vector<double> near, far;
-    DisparityErrors(weather, &near, &far);
+    DisparityErrors(scene, weather, &near, &far);
     ASSERT_GT(near.size(), 50u);
     ASSERT_GT(far.size(), 20u);
     std::vector<double> near_abs;
