@@ -436,6 +436,7 @@ nlohmann::json VioStatsJson(const VioRunReport& report) {
     j["loop_keyframes"] = r.loop_keyframes;
     j["loop_faded_keyframes"] = r.loop_faded_keyframes;
     j["loops_unsupported"] = r.loops_unsupported;
+    j["loops_aliased"] = r.loops_aliased;
   }
   if (!r.gnss_stats.received) return j;
   const vio::GnssFusionStats& g = r.gnss_stats;

@@ -115,6 +115,7 @@ TEST_F(VioRunTest, StereoInertialWritesTrajectoriesAndStats) {
   EXPECT_EQ(j["loop_faded_keyframes"], r.run.loop_keyframes);
   EXPECT_EQ(r.run.loop_faded_keyframes, r.run.loop_keyframes);
   EXPECT_EQ(j["loops_unsupported"], r.run.loops_unsupported);
+  EXPECT_EQ(j["loops_aliased"], r.run.loops_aliased);
   EXPECT_EQ(j["frame"], "world");
   EXPECT_EQ(j["vehicle"], "free");  // auto on a drone route
   EXPECT_TRUE(j["timing_per_frame"].contains("total"));

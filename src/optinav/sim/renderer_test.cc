@@ -263,6 +263,48 @@ TEST(Renderer, VariedAsphaltDoesNotRepeatEveryPeriod) {
   EXPECT_GE(varied_differ, straight - 2) << "of " << straight << " straight pairs";
 }
 
+// The terrain's ground (since 2026-12-07): level views straight down from 2 m, one 5 m cell
+// apart, show different grass or soil. Before, each was one texture repeating every 5 m, and
+// where dust left only the ground within 15-20 m in view the stereo loop closer verified 36 loops
+// between the route's end and its start 50 m away, whole periods apart (docs/VIO.md). Measured
+// with one variant per surface (the old repetition): 22 of these 26 pairs correlate at 0.53-0.96,
+// the other 4 straddle grass and soil; with 8 variants 24 of 26 are below 0.5.
+TEST(Renderer, TerrainGroundDoesNotRepeatEveryCell) {
+  const Scene& terrain = Terrain();
+  const Renderer r(terrain.world);
+  const camera::PinholeCamera cam = camera::PinholeCamera::FromHorizontalFov(160, 120, M_PI / 3);
+  const Rigid3d body_from_cam = ForwardCamera({0, 0, 2.0}, M_PI / 2);
+  auto grey = [&](const Rigid3d& world_from_body) {
+    cv::Mat img, g;
+    r.Render(cam, world_from_body * body_from_cam, &img);
+    cv::cvtColor(img, g, cv::COLOR_BGR2GRAY);
+    return g;
+  };
+  int pairs = 0, differ = 0;
+  for (double t0 = 8; t0 < 95; t0 += 7) {
+    Rigid3d a = terrain.route.At(static_cast<int64_t>(t0 * 1e9)).world_from_body;
+    a.rotation = Eigen::Quaterniond::Identity();  // level, facing +x: the cells' axes
+    a.translation.z() = terrain.world.ground_height(a.translation.x(), a.translation.y());
+    for (const Eigen::Vector2d& step : {Eigen::Vector2d(5, 0), Eigen::Vector2d(0, 5)}) {
+      Rigid3d b = a;
+      b.translation.head<2>() += step;
+      b.translation.z() = terrain.world.ground_height(b.translation.x(), b.translation.y());
+      // Zero-mean normalised cross-correlation: the shading and the slope change the grey
+      // levels between two cells of one texture, not the pattern.
+      cv::Mat zncc;
+      cv::matchTemplate(grey(a), grey(b), zncc, cv::TM_CCOEFF_NORMED);
+      const double c = zncc.at<float>(0, 0);
+      std::printf("ground at %.0f s and 5 m further along %s: correlation %.2f (< 0.5)\n", t0,
+                  step.x() > 0 ? "x" : "y", c);
+      ++pairs;
+      differ += c < 0.5 ? 1 : 0;
+    }
+  }
+  ASSERT_GE(pairs, 20);
+  // 8 variants picked by a hash per cell: about 1 in 8 neighbours repeat by chance.
+  EXPECT_GE(differ, pairs - pairs / 4) << "of " << pairs << " pairs";
+}
+
 TEST(Texture, SamplingIsContinuousInTheMipLevel) {
   const Texture tex(MakeSurfaceImage(SurfaceKind::kSidewalk, 3));
   ASSERT_GE(tex.levels(), 5);

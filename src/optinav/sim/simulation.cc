@@ -218,6 +218,9 @@ nlohmann::ordered_json MarkerParameters(const SimulationOptions& options) {
   // Urban only; a marker without it (written before 2026-12-06) is tiled.
   if (options.world.kind == WorldKind::kUrban)
     j["asphalt"] = AsphaltName(options.world.varied_asphalt);
+  // Terrain only: its ground in variants per cell since 2026-12-07; a terrain marker without it
+  // was written over the ground that repeats every 5 m, which this binary no longer renders.
+  if (options.world.kind == WorldKind::kTerrain) j["ground"] = "varied";
   j["seed"] = options.seed;
   j["format"] = FormatName(options.format);
   j["scale"] = options.scale;
@@ -253,9 +256,9 @@ bool IsRenderingOf(const std::string& dir, const SimulationOptions& options, std
     return fail(fmt::format("renderer {} (this binary's: {})", renderer.dump(), kRendererVersion));
   }
   const nlohmann::ordered_json want = MarkerParameters(options);
-  for (const char* key :
-       {"world", "ortho", "route", "weather", "particles_still", "asphalt", "seed", "format",
-        "scale", "requested_duration_s", "speed_m_s", "altitude_m", "drag_per_s", "wind_m_s"}) {
+  for (const char* key : {"world", "ortho", "route", "weather", "particles_still", "asphalt",
+                          "ground", "seed", "format", "scale", "requested_duration_s", "speed_m_s",
+                          "altitude_m", "drag_per_s", "wind_m_s"}) {
     nlohmann::ordered_json have = j.contains(key) ? j.at(key) : nlohmann::ordered_json();
     // Markers written before 2026-12-06: without the asphalt (tiled), and without the requested
     // duration, which the rendered one stands for when it was reached (0: the whole route).

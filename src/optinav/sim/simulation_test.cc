@@ -295,6 +295,19 @@ TEST(Simulation, IsRenderingOfComparesTheRecordedParameters) {
   tiled.duration_s = 0;  // the whole route: the marker cannot tell, so it is taken
   EXPECT_TRUE(IsRenderingOf(o.out_dir, tiled));
 
+  // Terrain: a marker of before 2026-12-07 has no "ground" (the ground that repeated every 5 m,
+  // which this renderer no longer makes).
+  nlohmann::json t = j;
+  t["world"] = "terrain";
+  SimulationOptions terrain = tiled;
+  terrain.world.kind = WorldKind::kTerrain;
+  testing::WriteFile(marker, t.dump(2));
+  EXPECT_FALSE(IsRenderingOf(o.out_dir, terrain, &why));
+  EXPECT_EQ(why, "ground: absent (wanted \"varied\")");
+  t["ground"] = "varied";
+  testing::WriteFile(marker, t.dump(2));
+  EXPECT_TRUE(IsRenderingOf(o.out_dir, terrain, &why)) << why;
+
   // Another renderer version, a broken marker, none.
   j["renderer"] = kRendererVersion + 1;
   testing::WriteFile(marker, j.dump(2));

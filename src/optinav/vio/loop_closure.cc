@@ -22,6 +22,10 @@
 
 namespace optinav::vio {
 
+namespace {
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+}  // namespace
+
 std::string LoopClosureOptions::Check() const {
   if (orb_features < 50) return "loop_closure.orb_features must be >= 50";
   if (orb_fast_threshold < 1 || orb_fast_threshold > 255)
@@ -66,6 +70,10 @@ std::string LoopClosureOptions::Check() const {
       !(support_tolerance_fraction >= 0) || !(support_max_wait_s >= 0))
     return "loop_closure.support_min_path_m, support_tolerance_fraction and support_max_wait_s "
            "must be >= 0, support_tolerance_m > 0";
+  if (!(alias_path_m >= 0) || alias_keyframes < 1 || !(alias_min_offset_m > 0) ||
+      !(alias_drift_fraction >= 0) || !(alias_min_sigmas >= 0))
+    return "loop_closure.alias_path_m, alias_drift_fraction and alias_min_sigmas must be >= 0, "
+           "alias_keyframes >= 1, alias_min_offset_m > 0";
   return "";
 }
 
@@ -489,6 +497,7 @@ bool LoopCloser::AddKeyframe(const StateEstimate& state, const cv::Mat& left,
   std::sort(candidates.begin(), candidates.end());
   if (candidates.size() > static_cast<size_t>(options_.max_candidates))
     candidates.resize(options_.max_candidates);
+  std::vector<PendingLoop> verified;
   for (const auto& [d, j] : candidates) {
     const Keyframe& c = keyframes_[j];
     const double radius =
@@ -498,12 +507,96 @@ bool LoopCloser::AddKeyframe(const StateEstimate& state, const cv::Mat& left,
     if (!Match(c, current, predicted, radius, &edge)) continue;
     edge.t_old_ns = c.t_ns;
     edge.t_new_ns = current.t_ns;
-    pending_.push_back({edge, j, cur});
+    verified.push_back({edge, j, cur});
+  }
+  // At a place that repeats every P metres, a loop picks the copy nearest to the odometry's
+  // prediction: right only when the odometry has drifted less than P / 2 since the candidate.
+  // (Not looked for when no loop's drift bound reaches half the smallest repeat it can measure.)
+  double longest_m = 0;
+  for (const PendingLoop& p : verified)
+    longest_m = std::max(longest_m, current.path_m - keyframes_[p.old_index].path_m);
+  const std::vector<Repeat> repeats =
+      options_.alias_drift_fraction * longest_m < 0.5 * options_.alias_min_offset_m
+          ? std::vector<Repeat>{}
+          : Repeats(cur, verified);
+  for (const PendingLoop& p : verified) {
+    const double drift_m =
+        options_.alias_drift_fraction * (current.path_m - keyframes_[p.old_index].path_m);
+    const auto ambiguous = std::find_if(repeats.begin(), repeats.end(), [&](const Repeat& r) {
+      return drift_m >= 0.5 * r.distance_m;
+    });
+    if (ambiguous == repeats.end()) {
+      pending_.push_back(p);
+      continue;
+    }
+    ++aliased_;
+    spdlog::debug(
+        "vio: loop {:.3f} s -> {:.3f} s ({} inliers) dropped: the place repeats {:.2f} m away "
+        "({} inliers), the odometry may have drifted {:.2f} m since",
+        p.edge.t_old_ns * 1e-9, p.edge.t_new_ns * 1e-9, p.edge.inliers, ambiguous->distance_m,
+        ambiguous->inliers, drift_m);
   }
   if (pending_.empty()) return false;
   if (last_solve_ns_ && (current.t_ns - *last_solve_ns_) * 1e-9 < options_.min_interval_s)
     return false;
   return SolvePending();
+}
+
+std::vector<LoopCloser::Repeat> LoopCloser::Repeats(size_t cur,
+                                                    const std::vector<PendingLoop>& loops) const {
+  std::vector<Repeat> repeats;
+  if (options_.alias_path_m <= 0) return repeats;
+  const Keyframe& current = keyframes_[cur];
+  // Two of its loops, to old keyframes of one earlier pass (whose odometry agrees with itself
+  // there), that place the keyframe apart.
+  for (size_t a = 0; a < loops.size(); ++a) {
+    for (size_t b = a + 1; b < loops.size(); ++b) {
+      const Keyframe &old_a = keyframes_[loops[a].old_index],
+                     &old_b = keyframes_[loops[b].old_index];
+      if (std::abs(old_a.path_m - old_b.path_m) > options_.alias_path_m) continue;
+      const double apart_m = (old_a.odometry * loops[a].edge.old_body_from_new_body.translation -
+                              old_b.odometry * loops[b].edge.old_body_from_new_body.translation)
+                                 .norm();
+      if (apart_m <= options_.alias_min_offset_m ||
+          apart_m <=
+              options_.alias_min_sigmas * std::hypot(loops[a].edge.sigma_m, loops[b].edge.sigma_m))
+        continue;
+      spdlog::debug(
+          "vio: keyframe {:.3f} s: its loops to {:.3f} s and {:.3f} s place it {:.2f} m "
+          "apart: the place repeats",
+          current.t_ns * 1e-9, old_a.t_ns * 1e-9, old_b.t_ns * 1e-9, apart_m);
+      repeats.push_back({apart_m, std::min(loops[a].edge.inliers, loops[b].edge.inliers)});
+    }
+  }
+  // Its own recent keyframes, nearest to path distances spread evenly over (lo, hi].
+  const double lo = options_.alias_min_offset_m, hi = options_.alias_path_m;
+  std::vector<size_t> recent;
+  for (int i = options_.alias_keyframes; i >= 1 && hi > lo; --i) {
+    const double target = lo + (hi - lo) * i / options_.alias_keyframes;
+    // Back to the first keyframe at least `target` behind, or the farthest within the range.
+    size_t k = cur;
+    while (k > track_first_ && current.path_m - keyframes_[k].path_m < target &&
+           current.path_m - keyframes_[k - 1].path_m <= hi + 1.0)
+      --k;
+    const double back = current.path_m - keyframes_[k].path_m;
+    if (back > lo && std::find(recent.begin(), recent.end(), k) == recent.end())
+      recent.push_back(k);
+  }
+  for (size_t k : recent) {
+    const Keyframe& r = keyframes_[k];
+    const Rigid3d predicted = r.odometry.Inverse() * current.odometry;
+    LoopEdge edge;
+    if (!Match(r, current, predicted, kInfinity, &edge)) continue;
+    const double off_m = (predicted.Inverse() * edge.old_body_from_new_body).translation.norm();
+    if (off_m <= options_.alias_min_offset_m || off_m <= options_.alias_min_sigmas * edge.sigma_m)
+      continue;
+    spdlog::debug(
+        "vio: keyframe {:.3f} s matches its own keyframe {:.3f} s ({:.1f} m back) {:.2f} m off "
+        "the odometry ({} inliers): the place repeats",
+        current.t_ns * 1e-9, r.t_ns * 1e-9, current.path_m - r.path_m, off_m, edge.inliers);
+    repeats.push_back({off_m, edge.inliers});
+  }
+  return repeats;
 }
 
 bool LoopCloser::Supports(const PendingLoop& a, const PendingLoop& b) const {

@@ -4,6 +4,7 @@
 // graph keeps the odometry's roll and pitch).
 #include "optinav/vio/internal/loop_closure.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <map>
 #include <random>
@@ -12,11 +13,15 @@
 #include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
 #include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "optinav/eval/metrics.h"
 #include "optinav/features/features.h"
 #include "optinav/io/trajectory_io.h"
+#include "optinav/sim/renderer.h"
+#include "optinav/sim/rig.h"
 #include "optinav/sim/simulation.h"
+#include "optinav/sim/world.h"
 #include "optinav/util/error.h"
 #include "optinav/util/testing.h"
 #include "optinav/vio/pipeline.h"
@@ -183,6 +188,113 @@ TEST(LoopClosure, StereoOnlyClosersSearchTheirOwnRadius) {
   bad = {};
   bad.stereo_only_max_candidates = 0;
   EXPECT_NE(bad.Check().find("stereo_only_max_candidates"), std::string::npos);
+}
+
+// Ground that repeats every 5 m (one grass texture per 5 m cell, as the terrain world was
+// rendered before 2026-12-07), flat, seen by the car rig at 400x300. A car drives 30 m along x,
+// leaves (one keyframe 300 m away, black) and drives the same 30 m again, its odometry now 17 m
+// ahead of the truth (2.7 % of the 630 m since): outside the search radius (5 m + 1 %: 11 m) of
+// the truly same place, inside it of the places one, two and three periods further, which look
+// the same. Without the self-similarity check the closer verifies loops there, every one metres
+// off the truth. With it (the default) the keyframe's loops place it 5 m apart, and it matches
+// its own keyframes a few metres back at poses whole periods off the odometry: the place repeats
+// every 5 m, the odometry may have drifted 6.3 m (1 % of the path) since, and the loops are
+// dropped.
+TEST(LoopClosure, GroundThatRepeatsClosesNoLoop) {
+  sim::World world;
+  world.kind = sim::WorldKind::kTerrain;
+  world.ground_height = [](double, double) { return 0.0; };
+  world.textures.emplace_back(sim::MakeSurfaceImage(sim::SurfaceKind::kGrass, 3));
+  std::vector<sim::WorldTriangle> tris;
+  for (float x = -40; x < 120; x += 5) {
+    for (float y = -60; y < 60; y += 5) {
+      auto tri = [&](Eigen::Vector3f a, Eigen::Vector3f b, Eigen::Vector3f c) {
+        sim::WorldTriangle t;
+        t.p[0] = a, t.p[1] = b, t.p[2] = c;
+        for (int i = 0; i < 3; ++i) t.uv[i] = {t.p[i].x() / 5, -t.p[i].y() / 5};
+        tris.push_back(t);
+      };
+      const Eigen::Vector3f p00(x, y, 0), p10(x + 5, y, 0), p11(x + 5, y + 5, 0), p01(x, y + 5, 0);
+      tri(p00, p10, p11);
+      tri(p00, p11, p01);
+    }
+  }
+  sim::WorldChunk chunk;
+  for (const auto& t : tris)
+    for (const auto& p : t.p) chunk.box.extend(p);
+  chunk.triangles = std::move(tris);
+  world.chunks.push_back(std::move(chunk));
+  const sim::Renderer renderer(world);
+  const sim::SensorRig rig = sim::CarRig().Scaled(0.5);
+  struct Frame {
+    int64_t t_ns;
+    Rigid3d truth, odometry;
+    cv::Mat left, right;
+  };
+  std::vector<Frame> frames;
+  const cv::Mat black = cv::Mat::zeros(rig.left.height, rig.left.width, CV_8U);
+  auto add = [&](double t_s, const Eigen::Vector3d& truth, const Eigen::Vector3d& drift,
+                 bool seen) {
+    Frame f{static_cast<int64_t>(t_s * 1e9), Rigid3d(Eigen::Quaterniond::Identity(), truth),
+            Rigid3d(Eigen::Quaterniond::Identity(), truth + drift), black, black};
+    if (seen) {
+      f.left = cv::Mat(), f.right = cv::Mat();  // not into `black`, which they share
+      cv::Mat bgr;
+      renderer.Render(rig.left, f.truth * rig.body_from_left, &bgr);
+      cv::cvtColor(bgr, f.left, cv::COLOR_BGR2GRAY);
+      renderer.Render(rig.right, f.truth * rig.body_from_right, &bgr);
+      cv::cvtColor(bgr, f.right, cv::COLOR_BGR2GRAY);
+    }
+    frames.push_back(std::move(f));
+  };
+  const Eigen::Vector3d no_drift = Eigen::Vector3d::Zero(), drift(17, 0, 0);
+  for (int k = 0; k <= 30; ++k) add(0.5 * k, {double(k), 0, 0}, no_drift, true);
+  add(25, {15, 300, 0}, no_drift, false);
+  for (int k = 0; k <= 30; ++k) add(35 + 0.5 * k, {double(k), 0, 0}, drift, true);
+
+  const auto run = [&](bool alias_check, size_t* aliased) {
+    LoopClosureOptions o;
+    o.stereo_only_search_radius_fraction = -1;  // 5 m + 1 % of the path: 11 m
+    if (!alias_check) o.alias_path_m = 0;
+    LoopCloser closer(rig.Stereo(), rig.body_from_left, o, /*gravity_aligned=*/false);
+    for (const Frame& f : frames) {
+      StateEstimate s;
+      s.t_ns = f.t_ns;
+      s.world_from_body = f.odometry;
+      closer.AddKeyframe(s, f.left, f.right);
+    }
+    closer.Finish();
+    *aliased = closer.aliased_loops();
+    // The kept loops' distance from the truth.
+    std::vector<double> off;
+    for (const LoopEdge& l : closer.loops()) {
+      const auto at = [&](int64_t t) {
+        return std::find_if(frames.begin(), frames.end(),
+                            [&](const Frame& f) { return f.t_ns == t; })
+            ->truth;
+      };
+      const Rigid3d truth = at(l.t_old_ns).Inverse() * at(l.t_new_ns);
+      off.push_back((truth.Inverse() * l.old_body_from_new_body).translation.norm());
+    }
+    return off;
+  };
+  size_t aliased_off = 0, aliased_on = 0;
+  const std::vector<double> without = run(false, &aliased_off);
+  const std::vector<double> with = run(true, &aliased_on);
+  const double nearest = without.empty() ? 0 : *std::min_element(without.begin(), without.end());
+  std::printf(
+      "ground repeating every 5 m, odometry 17 m ahead on the second pass: without the "
+      "self-similarity check %zu loop(s) kept, the nearest %.2f m off the truth; with it %zu "
+      "kept (0), %zu dropped as aliased\n",
+      without.size(), nearest, with.size(), aliased_on);
+  ASSERT_GT(without.size(), 0u) << "the premise: the repeating ground verifies loops";
+  EXPECT_GT(nearest, 2.0) << "the premise: every loop is at the wrong place";
+  EXPECT_EQ(aliased_off, 0u);
+  EXPECT_EQ(with.size(), 0u);
+  EXPECT_GT(aliased_on, 0u);
+  LoopClosureOptions bad;
+  bad.alias_min_offset_m = 0;
+  EXPECT_NE(bad.Check().find("alias_min_offset_m"), std::string::npos);
 }
 
 // A circle of 20 m radius driven at 5 m/s, a keyframe every 0.1 m after `parked` keyframes

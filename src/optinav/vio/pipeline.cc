@@ -216,6 +216,7 @@ VioRunResult RunOnPairs(const camera::StereoRig& rig, const Rigid3d& body_from_c
     result.loop_keyframes = closer->keyframes();
     result.loop_faded_keyframes = closer->faded_keyframes();
     result.loops_unsupported = closer->unsupported_loops();
+    result.loops_aliased = closer->aliased_loops();
     if (!result.loops.empty()) {
       result.odometry = result.estimates;
       for (FrameEstimate& e : result.estimates) {

@@ -72,8 +72,9 @@ struct VioRunResult {
   bool loop_closure_ran = false;
   std::vector<LoopEdge> loops;
   // The closer's keyframes, those of them described again as faded (LoopCloser::faded_keyframes),
-  // and the verified loops it dropped for want of support (LoopCloser::unsupported_loops).
-  size_t loop_keyframes = 0, loop_faded_keyframes = 0, loops_unsupported = 0;
+  // the verified loops it dropped for want of support (LoopCloser::unsupported_loops) and at
+  // places that repeat (LoopCloser::aliased_loops).
+  size_t loop_keyframes = 0, loop_faded_keyframes = 0, loops_unsupported = 0, loops_aliased = 0;
   std::vector<FrameEstimate> odometry;
   // With GNSS.
   std::vector<RejectedGnss> gnss_rejected;

@@ -684,6 +684,11 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(fl.support_tolerance_m, dl.support_tolerance_m);
   EXPECT_EQ(fl.support_tolerance_fraction, dl.support_tolerance_fraction);
   EXPECT_EQ(fl.support_max_wait_s, dl.support_max_wait_s);
+  EXPECT_EQ(fl.alias_path_m, dl.alias_path_m);
+  EXPECT_EQ(fl.alias_keyframes, dl.alias_keyframes);
+  EXPECT_EQ(fl.alias_min_offset_m, dl.alias_min_offset_m);
+  EXPECT_EQ(fl.alias_drift_fraction, dl.alias_drift_fraction);
+  EXPECT_EQ(fl.alias_min_sigmas, dl.alias_min_sigmas);
   EXPECT_EQ(fl.odometry_sigma_m_per_m, dl.odometry_sigma_m_per_m);
   EXPECT_EQ(fl.odometry_min_sigma_m, dl.odometry_min_sigma_m);
   EXPECT_EQ(fl.odometry_sigma_rad_per_m, dl.odometry_sigma_rad_per_m);
