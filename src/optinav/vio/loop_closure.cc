@@ -512,13 +512,15 @@ bool LoopCloser::AddKeyframe(const StateEstimate& state, const cv::Mat& left,
   // At a place that repeats every P metres, a loop picks the copy nearest to the odometry's
   // prediction: right only when the odometry has drifted less than P / 2 since the candidate.
   // (Not looked for when no loop's drift bound reaches half the smallest repeat it can measure.)
-  double longest_m = 0;
-  for (const PendingLoop& p : verified)
+  double longest_m = 0, shortest_m = kInfinity;
+  for (const PendingLoop& p : verified) {
     longest_m = std::max(longest_m, current.path_m - keyframes_[p.old_index].path_m);
+    shortest_m = std::min(shortest_m, current.path_m - keyframes_[p.old_index].path_m);
+  }
   const std::vector<Repeat> repeats =
       options_.alias_drift_fraction * longest_m < 0.5 * options_.alias_min_offset_m
           ? std::vector<Repeat>{}
-          : Repeats(cur, verified);
+          : Repeats(cur, verified, 2 * options_.alias_drift_fraction * shortest_m);
   for (const PendingLoop& p : verified) {
     const double drift_m =
         options_.alias_drift_fraction * (current.path_m - keyframes_[p.old_index].path_m);
@@ -543,9 +545,11 @@ bool LoopCloser::AddKeyframe(const StateEstimate& state, const cv::Mat& left,
 }
 
 std::vector<LoopCloser::Repeat> LoopCloser::Repeats(size_t cur,
-                                                    const std::vector<PendingLoop>& loops) const {
+                                                    const std::vector<PendingLoop>& loops,
+                                                    double enough_m) const {
   std::vector<Repeat> repeats;
   if (options_.alias_path_m <= 0) return repeats;
+  const auto enough = [&] { return !repeats.empty() && repeats.back().distance_m <= enough_m; };
   const Keyframe& current = keyframes_[cur];
   // Two of its loops, to old keyframes of one earlier pass (whose odometry agrees with itself
   // there), that place the keyframe apart.
@@ -566,6 +570,7 @@ std::vector<LoopCloser::Repeat> LoopCloser::Repeats(size_t cur,
           "apart: the place repeats",
           current.t_ns * 1e-9, old_a.t_ns * 1e-9, old_b.t_ns * 1e-9, apart_m);
       repeats.push_back({apart_m, std::min(loops[a].edge.inliers, loops[b].edge.inliers)});
+      if (enough()) return repeats;
     }
   }
   // Its own recent keyframes, nearest to path distances spread evenly over (lo, hi].
@@ -595,6 +600,7 @@ std::vector<LoopCloser::Repeat> LoopCloser::Repeats(size_t cur,
         "the odometry ({} inliers): the place repeats",
         current.t_ns * 1e-9, r.t_ns * 1e-9, current.path_m - r.path_m, off_m, edge.inliers);
     repeats.push_back({off_m, edge.inliers});
+    if (enough()) return repeats;
   }
   return repeats;
 }

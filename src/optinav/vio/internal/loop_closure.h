@@ -283,11 +283,14 @@ class LoopCloser {
   // that show it: two of its verified `loops`, to old keyframes within alias_path_m of path of each
   // other, that place it more than alias_min_offset_m apart (the fewer inliers of the two); its
   // recent keyframes matched to it at a pose more than alias_min_offset_m from the odometry.
+  // Stops at the first repeat no longer than `enough_m` (one that drops every loop: the matches
+  // left could change nothing).
   struct Repeat {
     double distance_m = 0;
     int inliers = 0;
   };
-  std::vector<Repeat> Repeats(size_t cur, const std::vector<PendingLoop>& loops) const;
+  std::vector<Repeat> Repeats(size_t cur, const std::vector<PendingLoop>& loops,
+                              double enough_m) const;
   // Adds the waiting loops that another loop supports, solves, and drops the loops that disagree
   // with the solved graph. `last`: the track ends, unsupported loops are dropped.
   bool SolvePending(bool last = false);
