@@ -61,6 +61,10 @@ std::string VioOptions::Check() const {
     return "motion_init_window_s must be in [0, 2.5]";
   if (!(motion_init_aligned_tilt_sigma_rad > 0) || !(motion_init_aligned_velocity_sigma_m_s > 0))
     return "motion_init_aligned sigmas must be > 0";
+  if (!std::isfinite(motion_init_agreement_rad) || !std::isfinite(motion_init_agreement_sigmas))
+    return "motion_init_agreement_rad and motion_init_agreement_sigmas must be finite";
+  if (!(motion_init_max_whitened_residual > 0))
+    return "motion_init_max_whitened_residual must be > 0";
   if (!(max_frame_gap_s > 0) || !(max_imu_gap_s > 0)) return "max gaps must be > 0";
   if (min_tracked_landmarks < 0) return "min_tracked_landmarks must be >= 0";
   if (!(max_weak_tracking_s >= 0)) return "max_weak_tracking_s must be >= 0";
@@ -229,7 +233,10 @@ std::map<std::string, Section> OptionSections(VioOptions& o) {
         {"motion_init_accel_bias_sigma", &o.motion_init_accel_bias_sigma},
         {"motion_init_window_s", &o.motion_init_window_s},
         {"motion_init_aligned_tilt_sigma_rad", &o.motion_init_aligned_tilt_sigma_rad},
-        {"motion_init_aligned_velocity_sigma_m_s", &o.motion_init_aligned_velocity_sigma_m_s}}},
+        {"motion_init_aligned_velocity_sigma_m_s", &o.motion_init_aligned_velocity_sigma_m_s},
+        {"motion_init_agreement_rad", &o.motion_init_agreement_rad},
+        {"motion_init_agreement_sigmas", &o.motion_init_agreement_sigmas},
+        {"motion_init_max_whitened_residual", &o.motion_init_max_whitened_residual}}},
       {"failure",
        {{"max_frame_gap_s", &o.max_frame_gap_s},
         {"max_imu_gap_s", &o.max_imu_gap_s},
@@ -304,6 +311,11 @@ VioOptions LoadVioOptions(const std::string& path) {
 }
 
 namespace {
+
+// The angle between two directions (rad).
+double AngleBetween(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::atan2(a.cross(b).norm(), a.dot(b));
+}
 
 bool SameImage(const cv::Mat& a, const cv::Mat& b) {
   if (a.size() != b.size() || a.type() != b.type()) return false;
@@ -603,6 +615,8 @@ std::optional<double> VioEstimator::ImageMotionSinceWindowStartPx(
 void VioEstimator::ResetMotionInit() {
   init_odometry_.reset();
   init_frames_.clear();
+  pending_alignment_.reset();
+  init_attempt_front_ = 0;
 }
 
 void VioEstimator::HoldGyroBiasIf(bool low_contrast, ImuPreintegration* pre) const {
@@ -651,32 +665,80 @@ bool VioEstimator::MotionInitStep(const FramePacket& packet) {
         {t_ns, first.world_from_body, features.observations, true, features.stats.low_contrast});
     return false;
   }
-  const int64_t first_ns = init_frames_.front().t_ns;
-  if ((t_ns - first_ns) * 1e-9 < options_.motion_init_window_s) return false;
+  // This attempt's window: from init_frames_[init_attempt_front_] (the front itself unless an
+  // alignment awaits its confirmation) to the newest frame.
+  const int64_t window_start_ns = init_frames_[init_attempt_front_].t_ns;
+  if ((t_ns - window_start_ns) * 1e-9 < options_.motion_init_window_s) return false;
   // The IMU between consecutive odometry frames, at the prior bias.
   const ImuBias prior = last_good_ ? last_good_->bias : ImuBias{};
-  if (const auto problem = ImuProblem(backend_imu_, first_ns, t_ns)) {
+  if (const auto problem = ImuProblem(backend_imu_, init_frames_.front().t_ns, t_ns)) {
     spdlog::debug("vio: in-motion alignment window has an IMU problem ({}), restarting", *problem);
     ResetMotionInit();
     return false;
   }
+  // The alignment of init_frames_ from index `from` on (times and poses kept for the start).
   std::vector<int64_t> times;
   std::vector<Rigid3d> poses;
-  std::vector<ImuPreintegration> pre;
-  for (const MotionInitFrame& f : init_frames_) {
-    if (!times.empty()) pre.push_back(Preintegrate(backend_imu_, times.back(), f.t_ns, prior));
-    times.push_back(f.t_ns);
-    poses.push_back(f.vo_from_body);
-  }
   ViAlignmentOptions alignment_options;
   alignment_options.accel_bias_sigma = options_.motion_init_accel_bias_sigma;
-  const ViAlignmentResult r = SolveViAlignment(times, poses, std::move(pre), alignment_options);
+  alignment_options.max_whitened_residual = options_.motion_init_max_whitened_residual;
+  auto align_from = [&](size_t from) {
+    times.clear();
+    poses.clear();
+    std::vector<ImuPreintegration> pre;
+    for (size_t k = from; k < init_frames_.size(); ++k) {
+      const MotionInitFrame& f = init_frames_[k];
+      if (!times.empty()) pre.push_back(Preintegrate(backend_imu_, times.back(), f.t_ns, prior));
+      times.push_back(f.t_ns);
+      poses.push_back(f.vo_from_body);
+    }
+    return SolveViAlignment(times, poses, std::move(pre), alignment_options);
+  };
+  ViAlignmentResult r = align_from(init_attempt_front_);
+  // The next window starts half-way into this one.
+  const size_t next_front = init_attempt_front_ + (init_frames_.size() - init_attempt_front_) / 2;
   if (!r.ok) {
     spdlog::info("vio: in-motion alignment at {:.3f} s failed: {}; sliding on", t_ns * 1e-9,
                  r.failure);
-    init_frames_.erase(init_frames_.begin(), init_frames_.begin() + init_frames_.size() / 2);
+    init_frames_.erase(init_frames_.begin(), init_frames_.begin() + next_front);
+    pending_alignment_.reset();
+    init_attempt_front_ = 0;
     return false;
   }
+  if (options_.motion_init_agreement_rad > 0 || options_.motion_init_agreement_sigmas > 0) {
+    const double angle =
+        pending_alignment_ ? AngleBetween(pending_alignment_->gravity_vo, r.gravity_vo) : -1;
+    const double limit =
+        pending_alignment_
+            ? std::max(options_.motion_init_agreement_rad,
+                       options_.motion_init_agreement_sigmas *
+                           std::hypot(pending_alignment_->tilt_sigma_rad, r.tilt_sigma_rad))
+            : 0;
+    if (angle < 0 || angle > limit) {
+      // Unconfirmed: this alignment waits for the next window's (its frames from this window's
+      // first on).
+      if (angle >= 0)
+        spdlog::info(
+            "vio: in-motion alignment at {:.3f} s disagrees with the one before by {:.2f} deg; "
+            "sliding on",
+            t_ns * 1e-9, angle * 180 / M_PI);
+      init_frames_.erase(init_frames_.begin(), init_frames_.begin() + init_attempt_front_);
+      init_attempt_front_ = next_front - init_attempt_front_;
+      pending_alignment_ = std::move(r);
+      return false;
+    }
+    // Confirmed: one alignment over both windows (init_frames_ from the earlier one's first
+    // frame), or the earlier one's alone when the two together fail the residual test.
+    r = align_from(0);
+    spdlog::info(
+        "vio: in-motion alignment confirmed at {:.3f} s (gravity within {:.2f} deg of the one "
+        "before){}",
+        t_ns * 1e-9, angle * 180 / M_PI,
+        r.ok ? ""
+             : fmt::format("; both windows together fail ({}), the earlier one starts", r.failure));
+    if (!r.ok) r = std::move(*pending_alignment_);
+  }
+  const int64_t first_ns = times.front();
   // world_from_vo: gravity down, the first odometry frame at the last good position and yaw
   // (the origin and yaw 0 on the first start).
   Eigen::Quaterniond rotation = r.world_from_vo;

@@ -26,7 +26,9 @@
 // frame of that run with those values as priors ("in-motion-aligned") and the run's frames are
 // re-run through it with the IMU (so the odometry's own errors do not become priors); their
 // estimates are output once the alignment succeeds (TakeDelayedEstimates).
-// A run whose alignment fails slides on (its oldest half dropped). With motion_init_window_s = 0
+// A run whose alignment fails slides on (its oldest half dropped). One that passes starts only
+// when the next window, slid by half, agrees with it on gravity (motion_init_agreement_*); both
+// are then aligned together. With motion_init_window_s = 0
 // ("in-motion-priors"): attitude from the mean specific force over the window, velocity left to
 // the window to estimate, with loose priors on tilt and velocity and a tight one on the
 // accelerometer bias.
@@ -56,6 +58,7 @@
 #include "optinav/vio/gnss_fusion.h"
 #include "optinav/vio/internal/frontend.h"
 #include "optinav/vio/internal/loop_closure.h"
+#include "optinav/vio/internal/vi_alignment.h"
 
 namespace optinav::vio {
 
@@ -151,6 +154,15 @@ struct VioOptions {
   // Floor of the tilt prior after the alignment (its own estimate is used when larger), rad.
   double motion_init_aligned_tilt_sigma_rad = 0.005;
   double motion_init_aligned_velocity_sigma_m_s = 0.1;
+  // An alignment starts the window only when the next one, over the window slid by half its
+  // length, finds the same gravity direction: within the larger of motion_init_agreement_rad and
+  // motion_init_agreement_sigmas x their combined tilt sigma. Both windows are then aligned
+  // together and the start takes the earlier one's first frame. Both <= 0: the first alignment
+  // that passes its residual test starts (before 2026-12-07).
+  double motion_init_agreement_rad = 0.035;
+  double motion_init_agreement_sigmas = 3.0;
+  // Largest single whitened residual an alignment accepts (its RMS must stay within 3).
+  double motion_init_max_whitened_residual = 12.0;
   // Failure detection.
   double max_frame_gap_s = 0.5;      // larger jumps between frames end the track
   double max_imu_gap_s = 0.05;       // larger gaps between IMU samples end the track
@@ -316,6 +328,10 @@ class VioEstimator {
   };
   std::unique_ptr<SlidingWindowBackend> init_odometry_;
   std::vector<MotionInitFrame> init_frames_;
+  // An alignment awaiting its confirmation (motion_init_agreement_rad), from init_frames_'s
+  // first frame; the next window starts at init_frames_[init_attempt_front_].
+  std::optional<ViAlignmentResult> pending_alignment_;
+  size_t init_attempt_front_ = 0;
   // Stillness by vision: the observations of the frames TryInitialize saw over the IMU window
   // (the first one at or before its start), and their tracks' median motion in px since then
   // (nullopt without a frame at the window's start or with fewer than 10 tracks in common).
