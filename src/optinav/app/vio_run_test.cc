@@ -38,8 +38,8 @@ class VioRunTest : public ::testing::Test {
     // seed 5 on the tiled road: its in-motion start was the fragile part (one 1 s alignment
     // decided it). The start now waits for two alignments to agree (docs/VIO.md, 2026-12-07
     // later); over 60 such flights that halves the worst APE but moves single seeds both ways,
-    // seed 5 tiled from 0.18 to 0.30 m. Seed 9 is one whose start confirms at the first pair of
-    // windows (0.4-1.9 s); this suite tests the driver, docs/VIO.md the start's spread.
+    // seed 5 tiled from 0.14 to 0.30 m here. Seed 9 is one whose start confirms at the first pair
+    // of windows (0.4-1.9 s); this suite tests the driver, docs/VIO.md the start's spread.
     o.seed = 9;
     o.gnss.sigma_m = kGnssSigmaM;  // precise enough to align ENU within the flight
     o.out_dir = (*root_ / "seq").string();

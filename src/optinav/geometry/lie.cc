@@ -46,6 +46,10 @@ double RotationAngle(const Eigen::Quaterniond& q) {
   return 2.0 * std::atan2(q.vec().norm(), std::abs(q.w()));
 }
 
+double AngleBetween(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::atan2(a.cross(b).norm(), a.dot(b));
+}
+
 Eigen::Matrix3d RightJacobianSO3(const Eigen::Vector3d& w) {
   const double theta2 = w.squaredNorm();
   const Eigen::Matrix3d W = Hat(w);

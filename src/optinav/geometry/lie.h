@@ -22,6 +22,8 @@ Eigen::Quaterniond ExpSO3(const Eigen::Vector3d& rotation_vector);
 Eigen::Vector3d LogSO3(const Eigen::Quaterniond& q);
 // Rotation angle in [0, pi] of a (not necessarily normalised) quaternion.
 double RotationAngle(const Eigen::Quaterniond& q);
+// Angle in [0, pi] between two directions (not necessarily unit), accurate near 0 and pi.
+double AngleBetween(const Eigen::Vector3d& a, const Eigen::Vector3d& b);
 // Right Jacobian of SO(3) (Forster et al. 2017, eq. 8).
 Eigen::Matrix3d RightJacobianSO3(const Eigen::Vector3d& rotation_vector);
 

@@ -8,6 +8,14 @@
 namespace optinav {
 namespace {
 
+TEST(SO3, AngleBetweenDirections) {
+  const Eigen::Vector3d x = Eigen::Vector3d::UnitX();
+  EXPECT_NEAR(AngleBetween(x, 2 * Eigen::Vector3d::UnitY()), M_PI / 2, 1e-15);
+  EXPECT_NEAR(AngleBetween(x, -3 * x), M_PI, 1e-15);
+  EXPECT_NEAR(AngleBetween(x, Eigen::Vector3d(1, 1e-9, 0)), 1e-9, 1e-18);  // acos would give 0
+  EXPECT_NEAR(AngleBetween(Eigen::Vector3d(1, 1, 0), Eigen::Vector3d(0, 1, 1)), M_PI / 3, 1e-15);
+}
+
 TEST(SO3, ExpLogRoundTripIncludingSmallAndNearPi) {
   std::mt19937 rng(7);
   std::normal_distribution<double> n(0, 1);

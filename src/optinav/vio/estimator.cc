@@ -10,6 +10,7 @@
 
 #include <fmt/format.h>
 
+#include "optinav/geometry/lie.h"
 #include "optinav/util/config.h"
 #include "optinav/util/error.h"
 #include "optinav/util/logging.h"
@@ -311,11 +312,6 @@ VioOptions LoadVioOptions(const std::string& path) {
 }
 
 namespace {
-
-// The angle between two directions (rad).
-double AngleBetween(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  return std::atan2(a.cross(b).norm(), a.dot(b));
-}
 
 bool SameImage(const cv::Mat& a, const cv::Mat& b) {
   if (a.size() != b.size() || a.type() != b.type()) return false;
@@ -706,22 +702,26 @@ bool VioEstimator::MotionInitStep(const FramePacket& packet) {
     return false;
   }
   if (options_.motion_init_agreement_rad > 0 || options_.motion_init_agreement_sigmas > 0) {
-    const double angle =
-        pending_alignment_ ? AngleBetween(pending_alignment_->gravity_vo, r.gravity_vo) : -1;
-    const double limit =
-        pending_alignment_
-            ? std::max(options_.motion_init_agreement_rad,
-                       options_.motion_init_agreement_sigmas *
-                           std::hypot(pending_alignment_->tilt_sigma_rad, r.tilt_sigma_rad))
-            : 0;
-    if (angle < 0 || angle > limit) {
-      // Unconfirmed: this alignment waits for the next window's (its frames from this window's
-      // first on).
-      if (angle >= 0)
+    // The angle by which this alignment confirms the pending one, if it does.
+    std::optional<double> agreement;
+    if (pending_alignment_) {
+      const double angle = AngleBetween(pending_alignment_->gravity_vo, r.gravity_vo);
+      const double limit =
+          std::max(options_.motion_init_agreement_rad,
+                   options_.motion_init_agreement_sigmas *
+                       std::hypot(pending_alignment_->tilt_sigma_rad, r.tilt_sigma_rad));
+      if (angle <= limit) {
+        agreement = angle;
+      } else {
         spdlog::info(
             "vio: in-motion alignment at {:.3f} s disagrees with the one before by {:.2f} deg; "
             "sliding on",
             t_ns * 1e-9, angle * 180 / M_PI);
+      }
+    }
+    if (!agreement) {
+      // Unconfirmed: this alignment waits for the next window's (its frames from this window's
+      // first on).
       init_frames_.erase(init_frames_.begin(), init_frames_.begin() + init_attempt_front_);
       init_attempt_front_ = next_front - init_attempt_front_;
       pending_alignment_ = std::move(r);
@@ -733,7 +733,7 @@ bool VioEstimator::MotionInitStep(const FramePacket& packet) {
     spdlog::info(
         "vio: in-motion alignment confirmed at {:.3f} s (gravity within {:.2f} deg of the one "
         "before){}",
-        t_ns * 1e-9, angle * 180 / M_PI,
+        t_ns * 1e-9, *agreement * 180 / M_PI,
         r.ok ? ""
              : fmt::format("; both windows together fail ({}), the earlier one starts", r.failure));
     if (!r.ok) r = std::move(*pending_alignment_);

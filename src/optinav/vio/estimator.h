@@ -328,7 +328,7 @@ class VioEstimator {
   };
   std::unique_ptr<SlidingWindowBackend> init_odometry_;
   std::vector<MotionInitFrame> init_frames_;
-  // An alignment awaiting its confirmation (motion_init_agreement_rad), from init_frames_'s
+  // An alignment awaiting its confirmation (motion_init_agreement_*), from init_frames_'s
   // first frame; the next window starts at init_frames_[init_attempt_front_].
   std::optional<ViAlignmentResult> pending_alignment_;
   size_t init_attempt_front_ = 0;

@@ -17,6 +17,7 @@
 
 #include "optinav/features/features.h"
 #include "optinav/geometry/angles.h"
+#include "optinav/geometry/lie.h"
 #include "optinav/util/error.h"
 #include "optinav/vio/internal/cv_pose.h"
 
@@ -148,10 +149,6 @@ void SolvePoseGraph(ceres::Problem* problem) {
   so.num_threads = 1;
   ceres::Solver::Summary summary;
   ceres::Solve(so, problem, &summary);
-}
-
-double AngleBetween(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  return std::atan2(a.cross(b).norm(), a.dot(b));
 }
 
 }  // namespace
