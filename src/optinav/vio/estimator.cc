@@ -105,6 +105,7 @@ std::map<std::string, Section> OptionSections(VioOptions& o) {
         {"quality_level", &f.quality_level},
         {"klt_window_px", &f.klt_window_px},
         {"stereo_window_px", &f.stereo_window_px},
+        {"stereo_refine_window_px", &f.stereo_refine_window_px},
         {"klt_pyramid_levels", &f.klt_pyramid_levels},
         {"klt_max_iterations", &f.klt_max_iterations},
         {"forward_backward_px", &f.forward_backward_px},

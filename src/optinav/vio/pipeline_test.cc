@@ -793,6 +793,10 @@ TEST(VioConfig, BadConfigsNameTheKey) {
       dir / "k.yaml", "backend:\n  stereo_only_anchored_observations_per_landmark: -1\n");
   EXPECT_ERROR(LoadVioOptions(anchors), {.file = anchors},
                "backend.stereo_only_anchored_observations_per_landmark must be >= 0 (0: off)");
+  const std::string refine =
+      optinav::testing::WriteFile(dir / "l.yaml", "frontend:\n  stereo_refine_window_px: 1\n");
+  EXPECT_ERROR(LoadVioOptions(refine), {.file = refine},
+               "stereo_refine_window_px must be 0 (off) or >= 3");
   const std::string mode = optinav::testing::WriteFile(dir / "c.yaml", "mode: mono\n");
   EXPECT_ERROR(LoadVioOptions(mode), {.file = mode, .line = 1, .field = "mode"},
                "expected stereo-imu or stereo, got 'mono'");

@@ -137,8 +137,12 @@ DisparityScene RenderDisparityScene() {
 // image effects of `weather` (haze and particles; the ground's surface stays clear): its
 // right-image x against where the z-buffer puts the left observation's point (depth interpolated
 // at the sub-pixel corner, corners off depth edges), split at 15 m.
+// `right_gain`, `right_offset`: the right image's grey levels scaled and shifted, as a real
+// camera pair exposes each camera on its own.
 void DisparityErrors(const DisparityScene& scene, const std::string& weather,
-                     std::vector<double>* near, std::vector<double>* far) {
+                     std::vector<double>* near, std::vector<double>* far,
+                     const FrontendOptions& options = FrontendOptions(), double right_gain = 1.0,
+                     double right_offset = 0.0) {
   const sim::SensorRig& rig = scene.rig;
   const camera::StereoRig stereo{rig.left, rig.right,
                                  rig.body_from_right.Inverse() * rig.body_from_left};
@@ -149,7 +153,9 @@ void DisparityErrors(const DisparityScene& scene, const std::string& weather,
     sim::ApplyWeather(right, f.depth_right, rig.right, f.world_from_right, f.t_ns, spec, 1);
     cv::cvtColor(left, grey_left, cv::COLOR_BGR2GRAY);
     cv::cvtColor(right, grey_right, cv::COLOR_BGR2GRAY);
-    StereoFrontend frontend(stereo, FrontendOptions());
+    if (right_gain != 1.0 || right_offset != 0.0)
+      grey_right.convertTo(grey_right, -1, right_gain, right_offset);
+    StereoFrontend frontend(stereo, options);
     const FrontendOutput out = frontend.Process(f.t_ns, grey_left, grey_right, std::nullopt, true);
     const cv::Mat& depth = f.depth;
     for (const StereoObservation& obs : out.observations) {
@@ -201,6 +207,47 @@ TEST(SimAccuracy, FrontendStereoDisparityHasNoBias) {
         weather, Median(near), near.size(), Median(near_abs), Median(far), far.size());
     EXPECT_LT(std::abs(Median(near)), 0.2);
     EXPECT_LT(std::abs(Median(far)), 0.2);
+  }
+}
+
+double MedianAbs(const std::vector<double>& errors) {
+  std::vector<double> a;
+  for (double e : errors) a.push_back(std::abs(e));
+  return Median(a);
+}
+
+// The stereo refinement (frontend.stereo_refine_window_px, opt-in) places the near matches
+// closer to the truth than the 21 px stereo window alone, whose window spans the slanted road:
+// measured 2026-12-07, median |error| near (< 15 m), px, without / with: clear 0.34 / 0.13, fog
+// 100 % 0.43 / 0.15, dust 100 % 0.57 / 0.13, leaves 50 % 0.36 / 0.14; with the right image at
+// 0.9x contrast and 8 grey levels up, 0.39 / 0.12 (EuRoC's right camera: about 1.1x and +4.5).
+// The refinement fits a gain and an offset of the right image: plain KLT over 9 px shifted
+// EuRoC's matches by a median 0.9 px.
+TEST(SimAccuracy, StereoRefinementPlacesNearMatchesCloser) {
+  const DisparityScene scene = RenderDisparityScene();
+  FrontendOptions refined;
+  refined.stereo_refine_window_px = 9;
+  struct Case {
+    const char* weather;
+    double gain, offset;
+  };
+  for (const Case& c :
+       {Case{"none", 1.0, 0.0}, Case{"fog:100", 1.0, 0.0}, Case{"dust:100", 1.0, 0.0},
+        Case{"leaves:50", 1.0, 0.0}, Case{"none", 0.9, 8.0}}) {
+    SCOPED_TRACE(c.weather);
+    std::vector<double> near0, far0, near1, far1;
+    DisparityErrors(scene, c.weather, &near0, &far0, FrontendOptions(), c.gain, c.offset);
+    DisparityErrors(scene, c.weather, &near1, &far1, refined, c.gain, c.offset);
+    std::printf(
+        "%s, right image x%.2f %+.0f: near median |disparity error| %.3f px (21 px window, %zu) "
+        "-> %.3f px refined (%zu; < 0.6x), median %.3f px (|.| < 0.1), far %.3f px (%zu)\n",
+        c.weather, c.gain, c.offset, MedianAbs(near0), near0.size(), MedianAbs(near1), near1.size(),
+        Median(near1), Median(far1), far1.size());
+    ASSERT_GT(near1.size(), 50u);
+    ASSERT_GT(far1.size(), 20u);
+    EXPECT_LT(MedianAbs(near1), 0.6 * MedianAbs(near0));
+    EXPECT_LT(std::abs(Median(near1)), 0.1);
+    EXPECT_LT(std::abs(Median(far1)), 0.2);
   }
 }
 
