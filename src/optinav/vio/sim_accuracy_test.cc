@@ -184,6 +184,12 @@ void DisparityErrors(const DisparityScene& scene, const std::string& weather,
   }
 }
 
+double MedianAbs(const std::vector<double>& errors) {
+  std::vector<double> a;
+  for (double e : errors) a.push_back(std::abs(e));
+  return Median(a);
+}
+
 // The frontend's stereo matches carry no disparity bias, in clear weather and in the haze and
 // particles of the weather suite. The stereo odometry's yaw drift on the car route moves by about
 // 2 deg per 0.5 px of disparity offset (docs/VIO.md, 2026-12-05), so a frontend bias of that size
@@ -199,21 +205,13 @@ TEST(SimAccuracy, FrontendStereoDisparityHasNoBias) {
     DisparityErrors(scene, weather, &near, &far);
     ASSERT_GT(near.size(), 50u);
     ASSERT_GT(far.size(), 20u);
-    std::vector<double> near_abs;
-    for (double e : near) near_abs.push_back(std::abs(e));
     std::printf(
         "%s: frontend disparity error (measured - z-buffer), median: near (< 15 m) %.3f px (%zu; "
         "median |error| %.3f px), far %.3f px (%zu); max 0.2 px\n",
-        weather, Median(near), near.size(), Median(near_abs), Median(far), far.size());
+        weather, Median(near), near.size(), MedianAbs(near), Median(far), far.size());
     EXPECT_LT(std::abs(Median(near)), 0.2);
     EXPECT_LT(std::abs(Median(far)), 0.2);
   }
-}
-
-double MedianAbs(const std::vector<double>& errors) {
-  std::vector<double> a;
-  for (double e : errors) a.push_back(std::abs(e));
-  return Median(a);
 }
 
 // The stereo refinement (frontend.stereo_refine_window_px, opt-in) places the near matches
@@ -234,7 +232,7 @@ TEST(SimAccuracy, StereoRefinementPlacesNearMatchesCloser) {
   for (const Case& c :
        {Case{"none", 1.0, 0.0}, Case{"fog:100", 1.0, 0.0}, Case{"dust:100", 1.0, 0.0},
         Case{"leaves:50", 1.0, 0.0}, Case{"none", 0.9, 8.0}}) {
-    SCOPED_TRACE(c.weather);
+    SCOPED_TRACE(std::string(c.weather) + ", right image gain " + std::to_string(c.gain));
     std::vector<double> near0, far0, near1, far1;
     DisparityErrors(scene, c.weather, &near0, &far0, FrontendOptions(), c.gain, c.offset);
     DisparityErrors(scene, c.weather, &near1, &far1, refined, c.gain, c.offset);

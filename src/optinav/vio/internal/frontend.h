@@ -232,9 +232,10 @@ class StereoFrontend {
   void MatchStereo(const std::vector<cv::Mat>& left_pyramid,
                    const std::vector<cv::Mat>& right_pyramid, std::vector<Track>* tracks,
                    std::vector<std::optional<cv::Point2f>>* right, bool all);
-  // The stereo matches whose `matched` is set, refined by KLT over the stereo_refine_window_px
-  // window on the full-resolution images from where the stereo window put them; a refinement that
-  // fails or moves a match more than forward_backward_px keeps the match as it was.
+  // The stereo matches whose `matched` is set, refined over the stereo_refine_window_px window on
+  // the full-resolution images (Gauss-Newton on the right position and the right image's gain
+  // and offset) from where the stereo window put them; a refinement that does not converge or
+  // moves a match more than forward_backward_px keeps the match as it was.
   void RefineStereo(const std::vector<cv::Mat>& left_pyramid,
                     const std::vector<cv::Mat>& right_pyramid,
                     const std::vector<cv::Point2f>& left_pts, const std::vector<uchar>& matched,
