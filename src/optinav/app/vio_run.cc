@@ -398,6 +398,7 @@ nlohmann::json VioStatsJson(const VioRunReport& report) {
   j["poses"] = r.estimates.size();
   j["initializations"] = r.initializations;
   j["frozen_frames"] = r.frozen_frames;
+  j["imu_inflated_frames"] = r.imu_inflated_frames;
   j["first_initialization"] = r.first_init_kind;
   nlohmann::json timing = nlohmann::json::object();
   for (const auto& [stage, s] : r.timing)

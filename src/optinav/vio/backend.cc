@@ -81,6 +81,7 @@ std::string BackendOptions::Check() const {
     return "window_keyframes must be >= 2, got " + std::to_string(window_keyframes);
   if (!(pixel_sigma > 0)) return "pixel_sigma must be > 0";
   if (!(huber_pixels > 0)) return "huber_pixels must be > 0";
+  if (!(imu_pnp_check_pixels >= 0)) return "imu_pnp_check_pixels must be >= 0 (0: off)";
   if (!(outlier_pixels > 0)) return "outlier_pixels must be > 0";
   if (!(min_depth_m > 0) || !(max_depth_m > min_depth_m))
     return "need 0 < min_depth_m < max_depth_m";
@@ -507,6 +508,8 @@ StateEstimate SlidingWindowBackend::AddFrame(int64_t t_ns, const ImuPreintegrati
   AddObservations(added, observations);
   if (options_.use_imu && options_.predicted_gate_pixels > 0) GateOnPrediction(*added);
   if (!options_.use_imu && options_.stereo_only_pnp_gate_pixels > 0) GateOnPnp(*added);
+  stats_.num_imu_inflated = 0;
+  if (options_.use_imu && options_.imu_pnp_check_pixels > 0) CheckImuAgainstPnp(added);
   TriangulateNew(added);
   if (keyframe || states_.size() < 3) {
     Optimize();
@@ -855,8 +858,8 @@ void SlidingWindowBackend::RejectAboveGate(const std::vector<std::pair<uint64_t,
   stats_.num_gated = static_cast<int>(bad.size());
 }
 
-void SlidingWindowBackend::GateOnPnp(const State& state) {
-  stats_.num_gated = 0;
+std::optional<SlidingWindowBackend::PnpFit> SlidingWindowBackend::FitPnp(const State& state,
+                                                                         double gate) const {
   std::vector<uint64_t> ids;
   std::vector<cv::Point3d> object;
   std::vector<cv::Point2d> image;  // normalised left-camera coordinates
@@ -868,30 +871,28 @@ void SlidingWindowBackend::GateOnPnp(const State& state) {
     image.emplace_back(obs.left.x(), obs.left.y());
   }
   constexpr size_t kMinLandmarks = 12;
-  if (ids.size() < kMinLandmarks) return;
+  if (ids.size() < kMinLandmarks) return std::nullopt;
   // Seeded by the predicted pose; the camera matrix is the identity on normalised coordinates.
   cv::Mat rvec, tvec;
   RvecTvecFromPose(rig_.cam0_from_body * state.WorldFromBody().Inverse(), &rvec, &tvec);
   std::vector<int> inliers;
-  const double gate = options_.stereo_only_pnp_gate_pixels;
   if (!cv::solvePnPRansac(object, image, cv::Mat::eye(3, 3, CV_64F), cv::noArray(), rvec, tvec,
                           true, 100, static_cast<float>(gate / rig_.focal_px), 0.99, inliers,
                           cv::SOLVEPNP_P3P) ||
       2 * inliers.size() < ids.size())
-    return;
+    return std::nullopt;
   // The landmarks' errors (pixels, left and right camera) from a camera pose (Rodrigues vector,
   // translation), and how many are within the gate.
-  auto errors_at = [&](const cv::Mat& rv, const cv::Mat& tv, size_t* within) {
-    const Rigid3d body_from_world = rig_.cam0_from_body.Inverse() * PoseFromRvecTvec(rv, tv);
-    std::vector<std::pair<uint64_t, double>> errors;
-    *within = 0;
+  auto fit_at = [&](const cv::Mat& rv, const cv::Mat& tv) {
+    PnpFit fit;
+    fit.body_from_world = rig_.cam0_from_body.Inverse() * PoseFromRvecTvec(rv, tv);
     for (uint64_t id : ids) {
       const double e =
-          ReprojectionErrorPx(body_from_world, *landmarks_.at(id), state.observations.at(id));
-      errors.emplace_back(id, e);
-      *within += e <= gate ? 1 : 0;
+          ReprojectionErrorPx(fit.body_from_world, *landmarks_.at(id), state.observations.at(id));
+      fit.errors.emplace_back(id, e);
+      fit.within += e <= gate ? 1 : 0;
     }
-    return errors;
+    return fit;
   };
   // OpenCV refines the RANSAC model with EPnP on the inliers; Levenberg-Marquardt from there
   // minimises the reprojection error the gate measures. It can also slide off (a road's
@@ -907,16 +908,58 @@ void SlidingWindowBackend::GateOnPnp(const State& state) {
     cv::solvePnP(inlier_object, inlier_image, cv::Mat::eye(3, 3, CV_64F), cv::noArray(), rvec, tvec,
                  true, cv::SOLVEPNP_ITERATIVE);
   }
-  size_t within = 0, within_ransac = 0;
-  std::vector<std::pair<uint64_t, double>> errors = errors_at(rvec, tvec, &within);
-  auto ransac_errors = errors_at(ransac_rvec, ransac_tvec, &within_ransac);
-  if (within_ransac > within) {
-    errors = std::move(ransac_errors);
-    within = within_ransac;
-  }
+  PnpFit fit = fit_at(rvec, tvec);
+  PnpFit ransac_fit = fit_at(ransac_rvec, ransac_tvec);
+  if (ransac_fit.within > fit.within) fit = std::move(ransac_fit);
   // A pose that keeps fewer than half of the landmarks is not trusted to judge them.
-  if (2 * within < ids.size()) return;
-  RejectAboveGate(errors, gate, options_.stereo_only_pnp_gate_median_factor);
+  if (2 * fit.within < ids.size()) return std::nullopt;
+  return fit;
+}
+
+void SlidingWindowBackend::GateOnPnp(const State& state) {
+  stats_.num_gated = 0;
+  const double gate = options_.stereo_only_pnp_gate_pixels;
+  if (const std::optional<PnpFit> fit = FitPnp(state, gate))
+    RejectAboveGate(fit->errors, gate, options_.stereo_only_pnp_gate_median_factor);
+}
+
+void SlidingWindowBackend::CheckImuAgainstPnp(State* state) {
+  if (!state->has_preintegration) return;
+  const double check = options_.imu_pnp_check_pixels;
+  std::vector<double> predicted;
+  const Rigid3d body_from_world = state->WorldFromBody().Inverse();
+  for (const auto& [id, obs] : state->observations) {
+    const Landmark& landmark = *landmarks_.at(id);
+    if (landmark.Constrained())
+      predicted.push_back(ReprojectionErrorPx(body_from_world, landmark, obs));
+  }
+  if (predicted.empty() || Median(std::move(predicted)) <= check) return;
+  const std::optional<PnpFit> fit = FitPnp(*state, 0.5 * check);
+  if (!fit) return;
+  std::vector<double> errors;
+  for (const auto& [id, e] : fit->errors) errors.push_back(e);
+  if (Median(std::move(errors)) > 0.5 * check) return;
+  // The frame's own landmarks agree on a pose the IMU prediction misses by more than `check`
+  // pixels (median). The difference against the interval's preintegrated covariance (rotation
+  // and position blocks, both differences taken in the predicted body frame, which one frame
+  // interval turns little; the previous state taken as known) gives how much larger the white
+  // noise must have been; the interval's noise is inflated by that and the pose starts from PnP.
+  const Rigid3d world_from_pnp = fit->body_from_world.Inverse();
+  const Rigid3d predicted_pose = state->WorldFromBody();
+  const Eigen::Vector3d dtheta =
+      LogSO3(predicted_pose.rotation.conjugate() * world_from_pnp.rotation);
+  const Eigen::Vector3d dp = predicted_pose.rotation.conjugate() *
+                             (world_from_pnp.translation - predicted_pose.translation);
+  const Matrix9d& cov = state->preintegration.covariance();
+  const double m2 = dtheta.dot(cov.block<3, 3>(0, 0).ldlt().solve(dtheta)) +
+                    dp.dot(cov.block<3, 3>(6, 6).ldlt().solve(dp));
+  constexpr double kChi2Six = 16.8;  // 99 % of chi-square with 6 degrees of freedom
+  const double scale = std::sqrt(m2 / kChi2Six);
+  if (!(scale > 1)) return;
+  state->preintegration.ScaleWhiteNoise(std::min(scale, 1e4));
+  state->SetPose(world_from_pnp);
+  ++stats_.num_imu_inflated;
+  ++imu_inflations_;
 }
 
 void SlidingWindowBackend::RemoveOutliers() {

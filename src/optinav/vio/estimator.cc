@@ -146,6 +146,7 @@ std::map<std::string, Section> OptionSections(VioOptions& o) {
         {"anchored_max_depth_m", &b.anchored_max_depth_m},
         {"anchored_stereo", &b.anchored_stereo},
         {"predicted_gate_pixels", &b.predicted_gate_pixels},
+        {"imu_pnp_check_pixels", &b.imu_pnp_check_pixels},
         {"predicted_gate_median_factor", &b.predicted_gate_median_factor},
         {"stereo_only_pnp_gate_pixels", &o.stereo_only_pnp_gate_pixels},
         {"stereo_only_pnp_gate_median_factor", &o.stereo_only_pnp_gate_median_factor},

@@ -267,6 +267,9 @@ class VioEstimator {
   // Frames skipped because both images were identical to the previous frame's: a camera (or
   // driver) that repeats its last buffer. The IMU bridges them like a dropped frame.
   int frozen_frames() const { return frozen_frames_; }
+  // Frames whose IMU interval the backend's PnP check found faulty (noise inflated;
+  // backend.imu_pnp_check_pixels). Read after Finish().
+  int imu_inflations() const { return backend_.imu_inflations(); }
 
  private:
   bool TryInitialize(const FramePacket& packet);

@@ -46,7 +46,7 @@ ImuPreintegration ImuPreintegration::Prefix(double duration_s) const {
   for (const ImuMeasurement& m : measurements_) {
     const double dt = std::min(m.dt_s, duration_s - t);
     if (dt <= 1e-12) break;
-    out.Add({dt, m.gyro, m.accel, m.gyro_walk_scale});
+    out.Add({dt, m.gyro, m.accel, m.gyro_walk_scale, m.white_noise_scale});
     t += dt;
   }
   return out;
@@ -64,6 +64,12 @@ void ImuPreintegration::ScaleGyroBiasWalk(double scale) {
     m.gyro_walk_scale *= scale;
     gyro_walk_s_ += m.gyro_walk_scale * m.gyro_walk_scale * m.dt_s;
   }
+}
+
+void ImuPreintegration::ScaleWhiteNoise(double scale) {
+  OPTINAV_CHECK(scale > 0);
+  for (ImuMeasurement& m : measurements_) m.white_noise_scale *= scale;
+  Reintegrate(bias_);
 }
 
 void ImuPreintegration::Propagate(const ImuMeasurement& m) {
@@ -89,7 +95,8 @@ void ImuPreintegration::Propagate(const ImuMeasurement& m) {
   B.block<3, 3>(3, 3) = dR * dt;
   B.block<3, 3>(6, 3) = 0.5 * dR * dt2;
   Eigen::Matrix<double, 6, 1> q;
-  const double sg = noise_.gyro_noise_density, sa = noise_.accel_noise_density;
+  const double sg = noise_.gyro_noise_density * m.white_noise_scale;
+  const double sa = noise_.accel_noise_density * m.white_noise_scale;
   q << Eigen::Vector3d::Constant(sg * sg / dt), Eigen::Vector3d::Constant(sa * sa / dt);
   covariance_ = A * covariance_ * A.transpose() + B * q.asDiagonal() * B.transpose();
 

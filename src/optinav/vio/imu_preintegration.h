@@ -57,6 +57,8 @@ struct ImuMeasurement {
   Eigen::Vector3d accel = Eigen::Vector3d::Zero();
   // The gyro bias random walk over this sample is this times the noise model's (1: as modelled).
   double gyro_walk_scale = 1.0;
+  // Its white noise (gyro and accelerometer) is this times the noise model's (ScaleWhiteNoise).
+  double white_noise_scale = 1.0;
 };
 
 class ImuPreintegration {
@@ -76,6 +78,9 @@ class ImuPreintegration {
   // Scales the gyro bias random walk of every stored sample (FullCovariance): a bias held
   // tighter than the noise model over this interval (scale < 1).
   void ScaleGyroBiasWalk(double scale);
+  // Multiplies the white noise (gyro and accelerometer) of every stored sample by `scale` and
+  // re-integrates: an interval the IMU is known to have measured worse than modelled.
+  void ScaleWhiteNoise(double scale);
 
   double dt_s() const { return dt_s_; }
   const ImuBias& linearization_bias() const { return bias_; }

@@ -196,6 +196,32 @@ TEST(ImuPreintegration, ScaledGyroBiasWalk) {
   EXPECT_NEAR(merged.Prefix(0.2).FullCovariance()(9, 9), wg2 * 0.01 * 0.2, 1e-18);
 }
 
+// An interval's white noise inflated (ScaleWhiteNoise, the backend's IMU fault check): the
+// preintegrated covariance grows by the scale squared, the deltas and the bias walk stay; the
+// scale survives a merge (per sample), a re-integration and a prefix.
+TEST(ImuPreintegration, ScaledWhiteNoise) {
+  const AnalyticTrajectory traj;
+  ImuPreintegration noisy = IntegrateAnalytic(traj, 0.0, 0.4, 200, {}, {});
+  const ImuPreintegration plain = noisy;
+  noisy.ScaleWhiteNoise(10.0);
+  const Matrix15d a = plain.FullCovariance(), b = noisy.FullCovariance();
+  const Matrix9d expected = 100.0 * a.topLeftCorner<9, 9>();
+  EXPECT_LT((b.topLeftCorner<9, 9>() - expected).norm(), 1e-9 * expected.norm());
+  EXPECT_EQ((b.bottomRightCorner<6, 6>() - a.bottomRightCorner<6, 6>()).norm(), 0.0);
+  EXPECT_EQ((noisy.delta_p() - plain.delta_p()).norm(), 0.0);
+  EXPECT_EQ(noisy.delta_R().angularDistance(plain.delta_R()), 0.0);
+  ImuPreintegration merged = noisy;
+  merged.Append(IntegrateAnalytic(traj, 0.4, 1.0, 200, {}, {}));
+  ImuPreintegration merged_plain = plain;
+  merged_plain.Append(IntegrateAnalytic(traj, 0.4, 1.0, 200, {}, {}));
+  EXPECT_GT(merged.covariance()(0, 0), 10.0 * merged_plain.covariance()(0, 0));
+  const double before = merged.covariance()(0, 0);
+  merged.Reintegrate(merged.linearization_bias());
+  EXPECT_NEAR(merged.covariance()(0, 0), before, 1e-12 * before);
+  EXPECT_NEAR(noisy.Prefix(0.2).covariance()(0, 0), 100.0 * plain.Prefix(0.2).covariance()(0, 0),
+              1e-9 * noisy.Prefix(0.2).covariance()(0, 0));
+}
+
 TEST(ImuPreintegration, MeasurementsBetweenCoverTheInterval) {
   std::vector<TimedImuSample> samples;
   for (int k = 0; k < 10; ++k) {

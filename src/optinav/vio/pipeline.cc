@@ -197,6 +197,7 @@ VioRunResult RunOnPairs(const camera::StereoRig& rig, const Rigid3d& body_from_c
   result.lost = estimator.lost_intervals();
   result.initializations = estimator.initializations();
   result.frozen_frames = estimator.frozen_frames();
+  result.imu_inflated_frames = estimator.imu_inflations();
   if (const GnssFusion* gnss = estimator.gnss()) {
     result.gnss_rejected = gnss->rejected();
     result.gnss_stats = gnss->stats();

@@ -65,6 +65,8 @@ struct VioRunResult {
   size_t frames_total = 0, frames_processed = 0, frames_unpaired = 0;
   int initializations = 0;
   int frozen_frames = 0;  // skipped: identical to the previous frame (VioEstimator::frozen_frames)
+  // Frames whose IMU interval the backend's PnP check found faulty (VioEstimator::imu_inflations).
+  int imu_inflated_frames = 0;
   std::string first_init_kind;
   Rigid3d body_from_cam0;
   // Loop closure (VioOptions::loop_closure): `estimates` are corrected by the closed loops;
