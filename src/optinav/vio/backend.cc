@@ -506,10 +506,10 @@ StateEstimate SlidingWindowBackend::AddFrame(int64_t t_ns, const ImuPreintegrati
   states_.push_back(std::move(state));
   State* added = states_.back().get();
   AddObservations(added, observations);
+  // The IMU check first: the prediction gate then judges against the corrected pose.
+  if (options_.use_imu && options_.imu_pnp_check_pixels > 0) CheckImuAgainstPnp(added);
   if (options_.use_imu && options_.predicted_gate_pixels > 0) GateOnPrediction(*added);
   if (!options_.use_imu && options_.stereo_only_pnp_gate_pixels > 0) GateOnPnp(*added);
-  stats_.num_imu_inflated = 0;
-  if (options_.use_imu && options_.imu_pnp_check_pixels > 0) CheckImuAgainstPnp(added);
   TriangulateNew(added);
   if (keyframe || states_.size() < 3) {
     Optimize();
@@ -832,25 +832,38 @@ void SlidingWindowBackend::RejectLandmarks(const std::set<uint64_t>& ids) {
   }
 }
 
-void SlidingWindowBackend::GateOnPrediction(const State& state) {
+std::vector<std::pair<uint64_t, double>> SlidingWindowBackend::ErrorsAtPose(
+    const State& state, bool constrained_only) const {
   const Rigid3d body_from_world = state.WorldFromBody().Inverse();
   std::vector<std::pair<uint64_t, double>> errors;
   for (const auto& [id, obs] : state.observations) {
     const Landmark& landmark = *landmarks_.at(id);
-    if (landmark.initialized)
+    if (constrained_only ? landmark.Constrained() : landmark.initialized)
       errors.emplace_back(id, ReprojectionErrorPx(body_from_world, landmark, obs));
   }
-  RejectAboveGate(errors, options_.predicted_gate_pixels, options_.predicted_gate_median_factor);
+  return errors;
+}
+
+namespace {
+
+double MedianError(const std::vector<std::pair<uint64_t, double>>& errors) {
+  std::vector<double> values;
+  values.reserve(errors.size());
+  for (const auto& [id, e] : errors) values.push_back(e);
+  return Median(std::move(values));
+}
+
+}  // namespace
+
+void SlidingWindowBackend::GateOnPrediction(const State& state) {
+  RejectAboveGate(ErrorsAtPose(state, /*constrained_only=*/false), options_.predicted_gate_pixels,
+                  options_.predicted_gate_median_factor);
 }
 
 void SlidingWindowBackend::RejectAboveGate(const std::vector<std::pair<uint64_t, double>>& errors,
                                            double gate, double median_factor) {
-  if (median_factor > 0 && !errors.empty()) {
-    std::vector<double> values;
-    values.reserve(errors.size());
-    for (const auto& [id, e] : errors) values.push_back(e);
-    gate = std::max(gate, median_factor * Median(std::move(values)));
-  }
+  if (median_factor > 0 && !errors.empty())
+    gate = std::max(gate, median_factor * MedianError(errors));
   std::set<uint64_t> bad;
   for (const auto& [id, e] : errors)
     if (e > gate) bad.insert(id);
@@ -924,41 +937,36 @@ void SlidingWindowBackend::GateOnPnp(const State& state) {
 }
 
 void SlidingWindowBackend::CheckImuAgainstPnp(State* state) {
-  if (!state->has_preintegration) return;
+  if (!state->has_preintegration || states_.size() < 2) return;
   const double check = options_.imu_pnp_check_pixels;
-  std::vector<double> predicted;
-  const Rigid3d body_from_world = state->WorldFromBody().Inverse();
-  for (const auto& [id, obs] : state->observations) {
-    const Landmark& landmark = *landmarks_.at(id);
-    if (landmark.Constrained())
-      predicted.push_back(ReprojectionErrorPx(body_from_world, landmark, obs));
-  }
-  if (predicted.empty() || Median(std::move(predicted)) <= check) return;
+  const std::vector<std::pair<uint64_t, double>> predicted =
+      ErrorsAtPose(*state, /*constrained_only=*/true);
+  if (predicted.empty() || MedianError(predicted) <= check) return;
   const std::optional<PnpFit> fit = FitPnp(*state, 0.5 * check);
-  if (!fit) return;
-  std::vector<double> errors;
-  for (const auto& [id, e] : fit->errors) errors.push_back(e);
-  if (Median(std::move(errors)) > 0.5 * check) return;
+  if (!fit || MedianError(fit->errors) > 0.5 * check) return;
   // The frame's own landmarks agree on a pose the IMU prediction misses by more than `check`
-  // pixels (median). The difference against the interval's preintegrated covariance (rotation
-  // and position blocks, both differences taken in the predicted body frame, which one frame
-  // interval turns little; the previous state taken as known) gives how much larger the white
-  // noise must have been; the interval's noise is inflated by that and the pose starts from PnP.
+  // pixels (median). Its difference from the prediction, in the preintegration's error terms
+  // (phi = Log(R_predicted^T R_pnp), the position error in the previous state's body frame),
+  // against their joint preintegrated covariance (the previous state taken as known) gives how
+  // much larger the interval's white noise must have been.
+  const State& previous = *states_[states_.size() - 2];
   const Rigid3d world_from_pnp = fit->body_from_world.Inverse();
   const Rigid3d predicted_pose = state->WorldFromBody();
-  const Eigen::Vector3d dtheta =
-      LogSO3(predicted_pose.rotation.conjugate() * world_from_pnp.rotation);
-  const Eigen::Vector3d dp = predicted_pose.rotation.conjugate() *
-                             (world_from_pnp.translation - predicted_pose.translation);
+  Vector6d error;
+  error.head<3>() = LogSO3(predicted_pose.rotation.conjugate() * world_from_pnp.rotation);
+  error.tail<3>() = previous.WorldFromBody().rotation.conjugate() *
+                    (world_from_pnp.translation - predicted_pose.translation);
   const Matrix9d& cov = state->preintegration.covariance();
-  const double m2 = dtheta.dot(cov.block<3, 3>(0, 0).ldlt().solve(dtheta)) +
-                    dp.dot(cov.block<3, 3>(6, 6).ldlt().solve(dp));
+  Eigen::Matrix<double, 6, 6> joint;
+  joint << cov.block<3, 3>(0, 0), cov.block<3, 3>(0, 6), cov.block<3, 3>(6, 0),
+      cov.block<3, 3>(6, 6);
+  const double m2 = error.dot(joint.ldlt().solve(error));
   constexpr double kChi2Six = 16.8;  // 99 % of chi-square with 6 degrees of freedom
+  constexpr double kMaxScale = 1e4;
   const double scale = std::sqrt(m2 / kChi2Six);
   if (!(scale > 1)) return;
-  state->preintegration.ScaleWhiteNoise(std::min(scale, 1e4));
+  state->preintegration.ScaleWhiteNoise(std::min(scale, kMaxScale));
   state->SetPose(world_from_pnp);
-  ++stats_.num_imu_inflated;
   ++imu_inflations_;
 }
 

@@ -105,12 +105,13 @@ struct BackendOptions {
   // weather, 2026-12-05 night).
   double stereo_only_pnp_gate_pixels = 0.0;
   double stereo_only_pnp_gate_median_factor = 0.0;
-  // With IMU: an IMU fault check. When the IMU-predicted pose of a new frame reprojects its
-  // landmarks (those seen by another state too) a median of more than this many pixels off, a
-  // RANSAC PnP of the frame (inlier threshold half of this) is tried; when at least half of the
-  // landmarks, and their median, agree with the PnP pose within half of this, the interval's
-  // IMU white noise is inflated until the two poses differ by the 99 % chi-square bound of its
-  // preintegrated rotation and position covariance, and the pose starts from PnP (0: off).
+  // With IMU: an IMU fault check, before the solve (and before predicted_gate_pixels). When the
+  // IMU-predicted pose of a new frame reprojects its landmarks (those seen by another state too)
+  // a median of more than this many pixels off, a RANSAC PnP of the frame (inlier threshold half
+  // of this) is tried; when at least half of the landmarks, and their median, fit the PnP pose
+  // within half of this, the interval's IMU white noise is inflated until the PnP pose lies on
+  // the 99 % chi-square bound of its preintegrated rotation and position covariance (by at most
+  // 1e4x), and the pose starts from PnP (0: off).
   // A burst of 100x the white noise for 0.5 s on the still EuRoC clip moved the estimate a mean
   // 0.20 m over 32 noise draws (24 over 0.1 m, one lost) with the IMU trusted as modelled: the
   // IMU factor pulled the pose away and the vision's observations were then removed as
@@ -243,8 +244,7 @@ struct BackendStats {
   int num_states = 0, num_keyframes = 0, num_landmarks = 0, num_observations = 0;
   int num_outliers_removed = 0;
   double median_reprojection_px = 0;  // over the window's observations after the last solve
-  int num_gated = 0;         // landmarks rejected on the predicted pose (predicted_gate_pixels)
-  int num_imu_inflated = 0;  // 1 when the newest interval's IMU noise was inflated (PnP check)
+  int num_gated = 0;  // landmarks rejected on the predicted pose (predicted_gate_pixels)
   int solver_iterations = 0;
   double initial_cost = 0, final_cost = 0;
   bool solver_usable = false;
@@ -337,12 +337,17 @@ class SlidingWindowBackend {
   // Before the solve: rejects the landmarks that the predicted pose of `state` (the newest)
   // reprojects farther than predicted_gate_pixels from its observations.
   void GateOnPrediction(const State& state);
+  // The reprojection errors (ReprojectionErrorPx) of `state`'s observations at its current pose:
+  // of its constrained landmarks, or of all initialised ones.
+  std::vector<std::pair<uint64_t, double>> ErrorsAtPose(const State& state,
+                                                        bool constrained_only) const;
   // Without IMU, before the solve: the gate against a RANSAC PnP pose of `state` (the newest;
   // BackendOptions::stereo_only_pnp_gate_pixels).
   void GateOnPnp(const State& state);
-  // A RANSAC PnP pose of `state` seeded by its pose, with every constrained landmark's error
-  // (pixels) and how many are within `gate`; none with fewer than 12 landmarks or fewer than
-  // half of them within the gate.
+  // A RANSAC PnP pose of `state` seeded by its pose (the refined pose, or RANSAC's when that
+  // keeps more landmarks within `gate` pixels), with every constrained landmark's error (pixels)
+  // and how many are within `gate`. None with fewer than 12 constrained landmarks, when RANSAC
+  // fails or keeps fewer than half of them, or when the pose keeps fewer than half within `gate`.
   struct PnpFit {
     Rigid3d body_from_world;
     std::vector<std::pair<uint64_t, double>> errors;

@@ -46,7 +46,9 @@ ImuPreintegration ImuPreintegration::Prefix(double duration_s) const {
   for (const ImuMeasurement& m : measurements_) {
     const double dt = std::min(m.dt_s, duration_s - t);
     if (dt <= 1e-12) break;
-    out.Add({dt, m.gyro, m.accel, m.gyro_walk_scale, m.white_noise_scale});
+    ImuMeasurement cut = m;
+    cut.dt_s = dt;
+    out.Add(cut);
     t += dt;
   }
   return out;
