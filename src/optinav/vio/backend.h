@@ -113,7 +113,7 @@ struct BackendOptions {
   // the 99 % chi-square bound of its preintegrated rotation and position covariance (by at most
   // 1e4x), and the pose starts from PnP (0: off).
   // A burst of 100x the white noise for 0.5 s on the still EuRoC clip moved the estimate a mean
-  // 0.20 m over 32 noise draws (24 over 0.1 m, one lost) with the IMU trusted as modelled: the
+  // 0.20 m over 32 noise draws (24 over 0.1 m, two lost) with the IMU trusted as modelled: the
   // IMU factor pulled the pose away and the vision's observations were then removed as
   // outliers. With the check: 6-9 mm in all 32 (pipeline_test, docs/VIO.md).
   double imu_pnp_check_pixels = 3.0;
