@@ -937,7 +937,7 @@ void SlidingWindowBackend::GateOnPnp(const State& state) {
 }
 
 void SlidingWindowBackend::CheckImuAgainstPnp(State* state) {
-  if (!state->has_preintegration || states_.size() < 2) return;
+  if (!state->has_preintegration) return;  // (AddFrame: `state` follows at least one state)
   const double check = options_.imu_pnp_check_pixels;
   const std::vector<std::pair<uint64_t, double>> predicted =
       ErrorsAtPose(*state, /*constrained_only=*/true);

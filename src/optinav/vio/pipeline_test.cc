@@ -487,7 +487,7 @@ TEST_F(SensorFaultTest, CameraStopsFor5sWhileTheImuRuns) {
 // 0.5 s of samples with 100x the sensor's white noise (gyro and accelerometer), eight noise
 // draws. Trusted as modelled, the faulty IMU pulled the still clip's pose away and the vision's
 // observations were then removed as outliers: a mean 0.20 m off at the end over 32 draws, 24
-// of them over 0.1 m, one lost (2026-12-07; the single draw this test used then, seed 22,
+// of them over 0.1 m, two lost (2026-12-07; the single draw this test used then, seed 22,
 // ended 0.03 m off). The backend's PnP check (imu_pnp_check_pixels) finds the intervals the
 // vision contradicts and inflates their IMU noise: 6-9 mm in all 32.
 TEST_F(SensorFaultTest, ImuSpikeOf100TimesTheNoiseFor0_5s) {
