@@ -106,6 +106,8 @@ std::map<std::string, Section> OptionSections(VioOptions& o) {
         {"klt_window_px", &f.klt_window_px},
         {"stereo_window_px", &f.stereo_window_px},
         {"stereo_refine_window_px", &f.stereo_refine_window_px},
+        {"klt_gain_offset", &f.klt_gain_offset},
+        {"stereo_only_klt_gain_offset", &f.stereo_only_klt_gain_offset},
         {"klt_pyramid_levels", &f.klt_pyramid_levels},
         {"klt_max_iterations", &f.klt_max_iterations},
         {"forward_backward_px", &f.forward_backward_px},
@@ -368,6 +370,7 @@ FrontendOptions FrontendOptionsForMode(FrontendOptions f, VioMode mode) {
       f.local_norm_sigma_px = f.stereo_only_local_norm_sigma_px;
     if (f.stereo_only_min_corner_isotropy >= 0)
       f.min_corner_isotropy = f.stereo_only_min_corner_isotropy;
+    f.klt_gain_offset = f.stereo_only_klt_gain_offset;
   }
   return f;
 }

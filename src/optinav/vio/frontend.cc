@@ -28,16 +28,83 @@ void KeepIfExclusive(std::vector<cv::Mat>* pyramid) {
     if (m.u == nullptr || m.u->refcount > 1) m.release();  // external memory, or shared
 }
 
-// Bilinear sample of an 8-bit image at (x, y); the caller keeps (x, y) at least one pixel inside.
-double Sample(const cv::Mat& image, double x, double y) {
-  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
-  const double ax = x - x0, ay = y - y0;
-  const uchar* r0 = image.ptr<uchar>(y0) + x0;
-  const uchar* r1 = image.ptr<uchar>(y0 + 1) + x0;
-  return (1 - ay) * ((1 - ax) * r0[0] + ax * r0[1]) + ay * ((1 - ax) * r1[0] + ax * r1[1]);
+// (2h + 3)^2 bilinear samples of an 8-bit image at (x + u, y + v), u, v = -h - 1 .. h + 1, row
+// by row: every sample shares the fractional part, so the four weights are computed once. The
+// caller keeps the grid at least one pixel inside the image.
+void SampleGrid(const cv::Mat& image, double x, double y, int h, std::vector<double>* out) {
+  const int side = 2 * h + 3;
+  out->resize(static_cast<size_t>(side * side));
+  const int x0 = static_cast<int>(std::floor(x)) - h - 1;
+  const int y0 = static_cast<int>(std::floor(y)) - h - 1;
+  const double ax = x - std::floor(x), ay = y - std::floor(y);
+  const double w00 = (1 - ax) * (1 - ay), w01 = ax * (1 - ay), w10 = (1 - ax) * ay, w11 = ax * ay;
+  double* o = out->data();
+  for (int v = 0; v < side; ++v) {
+    const uchar* r0 = image.ptr<uchar>(y0 + v) + x0;
+    const uchar* r1 = image.ptr<uchar>(y0 + v + 1) + x0;
+    for (int u = 0; u < side; ++u)
+      *o++ = w00 * r0[u] + w01 * r0[u + 1] + w10 * r1[u] + w11 * r1[u + 1];
+  }
 }
 
 }  // namespace
+
+bool AlignWithGainOffset(const cv::Mat& templ_image, const Eigen::Vector2d& t,
+                         const cv::Mat& target, int h, int max_iterations, Eigen::Vector2d* p) {
+  const int side = 2 * h + 1, grid = side + 2;
+  const double margin = h + 3;
+  auto inside = [&](const cv::Mat& image, const Eigen::Vector2d& q) {
+    return q.x() >= margin && q.y() >= margin && q.x() < image.cols - margin &&
+           q.y() < image.rows - margin;
+  };
+  if (!inside(templ_image, t) || !inside(target, *p)) return false;
+  std::vector<double> templ, samples;
+  SampleGrid(templ_image, t.x(), t.y(), h, &templ);
+  Eigen::Vector2d q = *p;
+  double gain = 1.0, offset = 0.0;
+  for (int iteration = 0; iteration < max_iterations; ++iteration) {
+    SampleGrid(target, q.x(), q.y(), h, &samples);
+    Eigen::Matrix4d hessian = Eigen::Matrix4d::Zero();
+    Eigen::Vector4d gradient = Eigen::Vector4d::Zero();
+    for (int v = 1; v <= side; ++v) {
+      for (int u = 1; u <= side; ++u) {
+        const int k = v * grid + u;
+        const double r = samples[k];
+        const double gx = 0.5 * (samples[k + 1] - samples[k - 1]);
+        const double gy = 0.5 * (samples[k + grid] - samples[k - grid]);
+        const Eigen::Vector4d j(gain * gx, gain * gy, r, 1.0);
+        const double e = gain * r + offset - templ[k];
+        hessian += j * j.transpose();
+        gradient += j * e;
+      }
+    }
+    // The window must constrain both directions once the gain and the offset are free: the
+    // smaller eigenvalue of the position's information with them eliminated (Schur complement),
+    // per pixel, at least (0.3 grey levels per pixel)^2. A window whose texture is a ramp
+    // (a soft edge, the haze itself) moves as an offset does and is left to the pyramid.
+    const Eigen::Matrix2d photometric_inverse = hessian.bottomRightCorner<2, 2>().inverse();
+    const Eigen::Matrix2d spatial =
+        (hessian.topLeftCorner<2, 2>() -
+         hessian.topRightCorner<2, 2>() * photometric_inverse * hessian.bottomLeftCorner<2, 2>()) /
+        (gain * gain);
+    const double min_eigen =
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(spatial, Eigen::EigenvaluesOnly)
+            .eigenvalues()(0) /
+        (side * side);
+    if (!(min_eigen >= 0.09)) return false;
+    const Eigen::Vector4d step = hessian.ldlt().solve(-gradient);
+    if (!step.allFinite()) return false;
+    q += step.head<2>();
+    gain += step(2);
+    offset += step(3);
+    if (!inside(target, q) || !(gain > 0.5 && gain < 2.0)) return false;
+    if (step.head<2>().norm() < 0.01) {
+      *p = q;
+      return true;
+    }
+  }
+  return false;
+}
 
 double MedianLocalStd(const cv::Mat& grey) {
   OPTINAV_CHECK(grey.type() == CV_8UC1);
@@ -334,67 +401,19 @@ void StereoFrontend::RefineStereo(const std::vector<cv::Mat>& left_pyramid,
                                   const std::vector<cv::Point2f>& left_pts,
                                   const std::vector<uchar>& matched,
                                   std::vector<cv::Point2f>* right_pts) const {
-  // Gauss-Newton on the right position p and a gain a and offset b of the right image:
-  // min over (p, a, b) of sum over the window of (a R(p + w) + b - L(l + w))^2. Real stereo
-  // cameras expose and amplify on their own, and a small window around a corner is mostly
-  // edges: an intensity offset between the two would shift plain KLT's match along the
+  // Real stereo cameras expose and amplify on their own, and a small window around a corner is
+  // mostly edges: an intensity offset between the two would shift plain KLT's match along the
   // window's mean gradient (on the EuRoC clip plain KLT over 9 px moved the 21 px matches by a
   // median 0.9 px, a tenth of them by more than 15 px).
-  const cv::Mat& left = left_pyramid.front();
-  const cv::Mat& right = right_pyramid.front();
-  const int h = options_.stereo_refine_window_px / 2;
-  const int side = 2 * h + 1;
-  const double margin = h + 2;
-  auto inside = [&](const cv::Mat& image, const Eigen::Vector2d& p) {
-    return p.x() >= margin && p.y() >= margin && p.x() < image.cols - margin &&
-           p.y() < image.rows - margin;
-  };
-  std::vector<double> templ(side * side);
   for (size_t i = 0; i < matched.size(); ++i) {
     if (!matched[i]) continue;
-    const Eigen::Vector2d l = ToEigen(left_pts[i]);
     const Eigen::Vector2d p0 = ToEigen((*right_pts)[i]);
-    if (!inside(left, l) || !inside(right, p0)) continue;
-    for (int v = -h, k = 0; v <= h; ++v)
-      for (int u = -h; u <= h; ++u, ++k) templ[k] = Sample(left, l.x() + u, l.y() + v);
     Eigen::Vector2d p = p0;
-    double gain = 1.0, offset = 0.0;
-    bool converged = false;
-    for (int iteration = 0; iteration < options_.klt_max_iterations; ++iteration) {
-      Eigen::Matrix4d hessian = Eigen::Matrix4d::Zero();
-      Eigen::Vector4d gradient = Eigen::Vector4d::Zero();
-      for (int v = -h, k = 0; v <= h; ++v) {
-        for (int u = -h; u <= h; ++u, ++k) {
-          const double x = p.x() + u, y = p.y() + v;
-          const double r = Sample(right, x, y);
-          const double gx = 0.5 * (Sample(right, x + 1, y) - Sample(right, x - 1, y));
-          const double gy = 0.5 * (Sample(right, x, y + 1) - Sample(right, x, y - 1));
-          const Eigen::Vector4d j(gain * gx, gain * gy, r, 1.0);
-          const double e = gain * r + offset - templ[k];
-          hessian += j * j.transpose();
-          gradient += j * e;
-        }
-      }
-      // The window must constrain both directions: the smaller eigenvalue of the spatial
-      // gradient matrix, per pixel, at least (0.3 grey levels per pixel)^2.
-      const Eigen::Matrix2d spatial = hessian.topLeftCorner<2, 2>() / (gain * gain);
-      const double min_eigen =
-          Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(spatial, Eigen::EigenvaluesOnly)
-              .eigenvalues()(0) /
-          (side * side);
-      if (!(min_eigen >= 0.09)) break;
-      const Eigen::Vector4d step = hessian.ldlt().solve(-gradient);
-      if (!step.allFinite()) break;
-      p += step.head<2>();
-      gain += step(2);
-      offset += step(3);
-      if (!inside(right, p) || !(gain > 0.5 && gain < 2.0)) break;
-      if (step.head<2>().norm() < 0.01) {
-        converged = true;
-        break;
-      }
-    }
-    if (converged && (p - p0).norm() <= options_.forward_backward_px) (*right_pts)[i] = ToCv(p);
+    if (AlignWithGainOffset(left_pyramid.front(), ToEigen(left_pts[i]), right_pyramid.front(),
+                            options_.stereo_refine_window_px / 2, options_.klt_max_iterations,
+                            &p) &&
+        (p - p0).norm() <= options_.forward_backward_px)
+      (*right_pts)[i] = ToCv(p);
   }
 }
 
@@ -572,6 +591,19 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
           !rig_.left.InImage(ToEigen(cur_pts[i]), options_.border_px)) {
         ++out.stats.rejected_fb;
         continue;
+      }
+      if (options_.klt_gain_offset) {
+        // Pyramidal KLT assumes constant brightness. Haze adds a veil that stays put in the image
+        // while the texture flows through it: its gradient pulls the match towards no motion.
+        // An offset (and gain) fitted over the window absorbs it to first order.
+        const Eigen::Vector2d p0 = ToEigen(cur_pts[i]);
+        Eigen::Vector2d p = p0;
+        if (AlignWithGainOffset(prev_pyramid_.front(), ToEigen(prev_pts[i]), left_pyramid.front(),
+                                options_.klt_window_px / 2, options_.klt_max_iterations, &p) &&
+            (p - p0).norm() <= options_.forward_backward_px) {
+          cur_pts[i] = ToCv(p);
+          ++out.stats.klt_refined;
+        }
       }
       kept.push_back(
           {tracks_[i].id, cur_pts[i], tracks_[i].stereo_offset, tracks_[i].stereo_failures});

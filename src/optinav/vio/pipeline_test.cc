@@ -638,6 +638,9 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
             d.frontend.fog_treatment_low_contrast_only);
   EXPECT_EQ(file.frontend.median_filter_px, d.frontend.median_filter_px);
   EXPECT_EQ(file.frontend.corner_block_px, d.frontend.corner_block_px);
+  EXPECT_EQ(file.frontend.klt_gain_offset, d.frontend.klt_gain_offset);
+  EXPECT_EQ(file.frontend.stereo_only_klt_gain_offset, d.frontend.stereo_only_klt_gain_offset);
+  EXPECT_EQ(file.frontend.stereo_refine_window_px, d.frontend.stereo_refine_window_px);
   EXPECT_EQ(file.backend.window_keyframes, d.backend.window_keyframes);
   EXPECT_EQ(file.backend.max_iterations, d.backend.max_iterations);
   EXPECT_EQ(file.stereo_only_pnp_gate_pixels, d.stereo_only_pnp_gate_pixels);

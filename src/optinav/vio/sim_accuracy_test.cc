@@ -3,6 +3,8 @@
 // in docs/VIO.md.
 #include <cmath>
 #include <cstdio>
+#include <map>
+#include <optional>
 
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
@@ -86,8 +88,9 @@ Accuracy Evaluate(const std::string& dir, const VioRunResult& r, bool se3 = true
 std::string Simulate(const std::string& name, const std::string& route, double duration_s,
                      double speed, double altitude, uint64_t seed,
                      const std::string& weather = "none", double scale = 0.5,
-                     bool varied_asphalt = true) {
+                     bool varied_asphalt = true, sim::WorldKind world = sim::WorldKind::kUrban) {
   sim::SimulationOptions o;
+  o.world.kind = world;
   o.world.varied_asphalt = varied_asphalt;
   o.route = route;
   o.duration_s = duration_s;
@@ -101,36 +104,63 @@ std::string Simulate(const std::string& name, const std::string& route, double d
   return o.out_dir;
 }
 
-// Five urban frames of the car route at the benchmark's 400x300, clear, with their z-buffers.
-struct DisparityScene {
-  struct Frame {
-    int64_t t_ns = 0;
-    Rigid3d world_from_left, world_from_right;
-    cv::Mat left, right, depth, depth_right;
-  };
-  sim::SensorRig rig = sim::CarRig().Scaled(0.5);
-  std::vector<Frame> frames;
+// One stereo frame of the car route as rendered (clear), with its z-buffers.
+struct RenderedFrame {
+  int64_t t_ns = 0;
+  Rigid3d world_from_left, world_from_right;
+  cv::Mat left, right, depth, depth_right;
 };
 
-DisparityScene RenderDisparityScene() {
+RenderedFrame RenderFrame(const sim::Renderer& renderer, const sim::BodyTrajectory& car,
+                          const sim::SensorRig& rig, double t_s) {
+  RenderedFrame f;
+  f.t_ns = static_cast<int64_t>(t_s * 1e9);
+  const Rigid3d world_from_body = car.At(f.t_ns).world_from_body;
+  f.world_from_left = world_from_body * rig.body_from_left;
+  f.world_from_right = world_from_body * rig.body_from_right;
+  renderer.Render(rig.left, f.world_from_left, &f.left, &f.depth);
+  renderer.Render(rig.right, f.world_from_right, &f.right, &f.depth_right);
+  return f;
+}
+
+// Frame chains of the urban car route at the benchmark's 400x300, clear, with their z-buffers:
+// `frames` consecutive frames (30 Hz) from each start time.
+struct RenderedScene {
+  sim::SensorRig rig = sim::CarRig().Scaled(0.5);
+  std::vector<std::vector<RenderedFrame>> chains;
+};
+
+RenderedScene RenderScene(const std::vector<double>& starts_s, int frames) {
   sim::WorldOptions wo;
   wo.seed = 5;
   const sim::World world = sim::MakeWorld(wo);
   const sim::BodyTrajectory car =
       sim::MakeCarTrajectory(sim::CarRouteOptions::Urban(), world.ground_height, 0);
   const sim::Renderer renderer(world);
-  DisparityScene scene;
-  for (double t : {8.0, 30.0, 55.0, 70.0, 90.0}) {
-    DisparityScene::Frame f;
-    f.t_ns = static_cast<int64_t>(t * 1e9);
-    const Rigid3d world_from_body = car.At(f.t_ns).world_from_body;
-    f.world_from_left = world_from_body * scene.rig.body_from_left;
-    f.world_from_right = world_from_body * scene.rig.body_from_right;
-    renderer.Render(scene.rig.left, f.world_from_left, &f.left, &f.depth);
-    renderer.Render(scene.rig.right, f.world_from_right, &f.right, &f.depth_right);
-    scene.frames.push_back(std::move(f));
+  RenderedScene scene;
+  for (double start : starts_s) {
+    std::vector<RenderedFrame> chain;
+    for (int k = 0; k < frames; ++k)
+      chain.push_back(RenderFrame(renderer, car, scene.rig, start + k / 30.0));
+    scene.chains.push_back(std::move(chain));
   }
   return scene;
+}
+
+// Five single frames.
+RenderedScene RenderDisparityScene() { return RenderScene({8.0, 30.0, 55.0, 70.0, 90.0}, 1); }
+
+// The z-buffer depth at a sub-pixel corner, or nullopt near a depth edge or the border.
+std::optional<double> DepthAt(const cv::Mat& depth, const Eigen::Vector2d& px) {
+  const int x0 = static_cast<int>(std::floor(px.x()));
+  const int y0 = static_cast<int>(std::floor(px.y()));
+  if (x0 < 3 || y0 < 3 || x0 >= depth.cols - 4 || y0 >= depth.rows - 4) return std::nullopt;
+  double dmin, dmax;
+  cv::minMaxLoc(depth(cv::Rect(x0 - 2, y0 - 2, 6, 6)), &dmin, &dmax);
+  if (!std::isfinite(dmax) || dmax > 1.05 * dmin) return std::nullopt;
+  const double ax = px.x() - x0, ay = px.y() - y0;
+  return (1 - ay) * ((1 - ax) * depth.at<float>(y0, x0) + ax * depth.at<float>(y0, x0 + 1)) +
+         ay * ((1 - ax) * depth.at<float>(y0 + 1, x0) + ax * depth.at<float>(y0 + 1, x0 + 1));
 }
 
 // Each stereo observation's disparity error (measured - true, px) on the scene's frames with the
@@ -139,7 +169,7 @@ DisparityScene RenderDisparityScene() {
 // at the sub-pixel corner, corners off depth edges), split at 15 m.
 // `right_gain`, `right_offset`: the right image's grey levels scaled and shifted, as a real
 // camera pair exposes each camera on its own.
-void DisparityErrors(const DisparityScene& scene, const std::string& weather,
+void DisparityErrors(const RenderedScene& scene, const std::string& weather,
                      std::vector<double>* near, std::vector<double>* far,
                      const FrontendOptions& options = FrontendOptions(), double right_gain = 1.0,
                      double right_offset = 0.0) {
@@ -147,7 +177,8 @@ void DisparityErrors(const DisparityScene& scene, const std::string& weather,
   const camera::StereoRig stereo{rig.left, rig.right,
                                  rig.body_from_right.Inverse() * rig.body_from_left};
   const sim::WeatherSpec spec = sim::ParseWeather(weather);
-  for (const DisparityScene::Frame& f : scene.frames) {
+  for (const auto& chain : scene.chains) {
+    const RenderedFrame& f = chain.front();
     cv::Mat left = f.left.clone(), right = f.right.clone(), grey_left, grey_right;
     sim::ApplyWeather(left, f.depth, rig.left, f.world_from_left, f.t_ns, spec, 1);
     sim::ApplyWeather(right, f.depth_right, rig.right, f.world_from_right, f.t_ns, spec, 1);
@@ -157,29 +188,20 @@ void DisparityErrors(const DisparityScene& scene, const std::string& weather,
       grey_right.convertTo(grey_right, -1, right_gain, right_offset);
     StereoFrontend frontend(stereo, options);
     const FrontendOutput out = frontend.Process(f.t_ns, grey_left, grey_right, std::nullopt, true);
-    const cv::Mat& depth = f.depth;
     for (const StereoObservation& obs : out.observations) {
       if (!obs.right) continue;
       const auto left_px = rig.left.Project(obs.left.homogeneous());
       const auto right_px = rig.right.Project(obs.right->homogeneous());
       if (!left_px || !right_px) continue;
       const Eigen::Vector2d px = *left_px;
-      const int x0 = static_cast<int>(std::floor(px.x()));
-      const int y0 = static_cast<int>(std::floor(px.y()));
-      if (x0 < 3 || y0 < 3 || x0 >= depth.cols - 4 || y0 >= depth.rows - 4) continue;
-      double dmin, dmax;
-      cv::minMaxLoc(depth(cv::Rect(x0 - 2, y0 - 2, 6, 6)), &dmin, &dmax);
-      if (!std::isfinite(dmax) || dmax > 1.05 * dmin) continue;
-      const double ax = px.x() - x0, ay = px.y() - y0;
-      const double d =
-          (1 - ay) * ((1 - ax) * depth.at<float>(y0, x0) + ax * depth.at<float>(y0, x0 + 1)) +
-          ay * ((1 - ax) * depth.at<float>(y0 + 1, x0) + ax * depth.at<float>(y0 + 1, x0 + 1));
-      const Eigen::Vector3d p_world = f.world_from_left * (rig.left.Unproject(px) * d);
+      const std::optional<double> d = DepthAt(f.depth, px);
+      if (!d) continue;
+      const Eigen::Vector3d p_world = f.world_from_left * (rig.left.Unproject(px) * *d);
       const auto truth = rig.right.Project(f.world_from_right.Inverse() * p_world);
       if (!truth) continue;
       // Measured minus true disparity.
       const double error = truth->x() - right_px->x();
-      (d < 15 ? near : far)->push_back(error);
+      (*d < 15 ? near : far)->push_back(error);
     }
   }
 }
@@ -198,7 +220,7 @@ double MedianAbs(const std::vector<double>& errors) {
 // bound: the weather spreads the errors (median |error| near 0.34 px clear, 0.57 px in dust
 // 100 %) but does not shift them, so the stereo odometry's drift in dust is not a scale bias.
 TEST(SimAccuracy, FrontendStereoDisparityHasNoBias) {
-  const DisparityScene scene = RenderDisparityScene();  // rendered once, each weather on a copy
+  const RenderedScene scene = RenderDisparityScene();  // rendered once, each weather on a copy
   for (const char* weather : {"none", "fog:100", "dust:100", "leaves:50"}) {
     SCOPED_TRACE(weather);
     std::vector<double> near, far;
@@ -222,7 +244,7 @@ TEST(SimAccuracy, FrontendStereoDisparityHasNoBias) {
 // The refinement fits a gain and an offset of the right image: plain KLT over 9 px shifted
 // EuRoC's matches by a median 0.9 px.
 TEST(SimAccuracy, StereoRefinementPlacesNearMatchesCloser) {
-  const DisparityScene scene = RenderDisparityScene();
+  const RenderedScene scene = RenderDisparityScene();
   FrontendOptions refined;
   refined.stereo_refine_window_px = 9;
   struct Case {
@@ -247,6 +269,89 @@ TEST(SimAccuracy, StereoRefinementPlacesNearMatchesCloser) {
     EXPECT_LT(std::abs(Median(near1)), 0.1);
     EXPECT_LT(std::abs(Median(far1)), 0.2);
   }
+}
+
+// Each temporal track's error at the chain's last frame against where the z-buffer puts the
+// point it started on (tracks born in the chain's first frame only): `along` the true image
+// motion (negative: the track lags, pulled towards no motion) and `abs` its length, px.
+void TrackErrors(const RenderedScene& scene, const std::string& weather,
+                 const FrontendOptions& options, std::vector<double>* along,
+                 std::vector<double>* abs_error) {
+  const sim::SensorRig& rig = scene.rig;
+  const camera::StereoRig stereo{rig.left, rig.right,
+                                 rig.body_from_right.Inverse() * rig.body_from_left};
+  const sim::WeatherSpec spec = sim::ParseWeather(weather);
+  for (const auto& chain : scene.chains) {
+    StereoFrontend frontend(stereo, options);
+    std::map<uint64_t, Eigen::Vector3d> born;  // track id -> world point
+    FrontendOutput out;
+    for (size_t k = 0; k < chain.size(); ++k) {
+      const RenderedFrame& f = chain[k];
+      cv::Mat left = f.left.clone(), right = f.right.clone(), grey_left, grey_right;
+      sim::ApplyWeather(left, f.depth, rig.left, f.world_from_left, f.t_ns, spec, 1);
+      sim::ApplyWeather(right, f.depth_right, rig.right, f.world_from_right, f.t_ns, spec, 1);
+      cv::cvtColor(left, grey_left, cv::COLOR_BGR2GRAY);
+      cv::cvtColor(right, grey_right, cv::COLOR_BGR2GRAY);
+      out = frontend.Process(f.t_ns, grey_left, grey_right, std::nullopt, k == 0);
+      if (k != 0) continue;
+      for (const StereoObservation& obs : out.observations) {
+        const Eigen::Vector2d px = *rig.left.Project(obs.left.homogeneous());
+        if (const auto d = DepthAt(f.depth, px))
+          born[obs.track_id] = f.world_from_left * (rig.left.Unproject(px) * *d);
+      }
+    }
+    const RenderedFrame& first = chain.front();
+    const RenderedFrame& last = chain.back();
+    for (const StereoObservation& obs : out.observations) {
+      const auto it = born.find(obs.track_id);
+      if (it == born.end()) continue;
+      const auto measured = rig.left.Project(obs.left.homogeneous());
+      const auto truth = rig.left.Project(last.world_from_left.Inverse() * it->second);
+      const auto start = rig.left.Project(first.world_from_left.Inverse() * it->second);
+      if (!measured || !truth || !start) continue;
+      const Eigen::Vector2d motion = *truth - *start;
+      if (motion.norm() < 2.0) continue;  // no direction to lag along
+      const Eigen::Vector2d error = *measured - *truth;
+      along->push_back(error.dot(motion.normalized()));
+      abs_error->push_back(error.norm());
+    }
+  }
+}
+
+// Haze is a veil fixed in the image that the texture flows through; plain pyramidal KLT takes
+// its gradient for texture and lags behind the true motion (docs/VIO.md, 2026-12-05 last). The
+// temporal refinement with a gain and an offset (frontend.klt_gain_offset) absorbs it. Measured
+// 2026-12-07 over 5 frames on ten stretches of the urban car route (error along the true motion,
+// median, px; plain -> refined): clear +0.007 -> +0.033 (median |error| 0.191 -> 0.214), fog
+// 100 % -0.152 -> -0.004 (0.504 -> 0.317), dust 100 % -0.365 -> -0.312 (0.692 -> 0.516). In
+// dust the lag stays: CLAHE turns the noise-free haze's 8-bit steps into contours fixed in the
+// image (without CLAHE the few tracks left lag -0.27 px plain and -0.04 px refined).
+TEST(SimAccuracy, TemporalTracksLagInHazeUnlessGainAndOffsetAreFitted) {
+  FrontendOptions refined;
+  refined.klt_gain_offset = true;
+  const RenderedScene scene = RenderScene({8, 14, 20, 26, 32, 38, 44, 50, 56, 62}, 6);
+  struct Result {
+    std::vector<double> along0, abs0, along1, abs1;
+  };
+  std::map<std::string, Result> results;
+  for (const char* weather : {"none", "fog:100", "dust:100"}) {
+    Result& r = results[weather];
+    TrackErrors(scene, weather, FrontendOptions(), &r.along0, &r.abs0);
+    TrackErrors(scene, weather, refined, &r.along1, &r.abs1);
+    std::printf(
+        "urban %s, tracks over 5 frames: error along the true motion, median %.3f px (%zu; median "
+        "|error| %.3f px) -> refined %.3f px (%zu; %.3f px)\n",
+        weather, Median(r.along0), r.along0.size(), Median(r.abs0), Median(r.along1),
+        r.along1.size(), Median(r.abs1));
+    ASSERT_GT(r.along1.size(), 25u) << weather;
+  }
+  const Result& clear = results["none"];
+  const Result& fog = results["fog:100"];
+  EXPECT_LT(Median(fog.along0), -0.1) << "the case: plain KLT lags in fog";
+  EXPECT_LT(std::abs(Median(fog.along1)), 0.05) << "refined, fog";
+  EXPECT_LT(Median(fog.abs1), 0.8 * Median(fog.abs0)) << "refined, fog";
+  EXPECT_LT(std::abs(Median(clear.along1)), 0.05) << "refined, clear";
+  EXPECT_LT(Median(clear.abs1), 1.25 * Median(clear.abs0)) << "refined, clear";
 }
 
 TEST(SimAccuracy, DroneStereoInertial) {
@@ -343,19 +448,31 @@ TEST(SimAccuracy, CarStereoOnly) {
   // (docs/VIO.md, 2026-12-06).
   const std::string dir =
       Simulate("car", "car", 21.0, 5.0, 20.0, 3, "none", 0.5, /*varied_asphalt=*/false);
+  // The guard is on the odometry without the temporal gain-and-offset refinement
+  // (frontend.stereo_only_klt_gain_offset, the stereo-only default since 2026-12-07), as every
+  // figure below was measured; the refinement, built for haze, costs clear weather a little: on
+  // this segment over seeds 1-4 a mean 0.493 -> 0.545 m (seed 3: 0.446 -> 0.485 m), so its own
+  // bound is relative (docs/VIO.md, "2026-12-07 (late)").
   VioRunOptions options;
   options.vio.mode = VioMode::kStereo;
+  options.vio.frontend.stereo_only_klt_gain_offset = false;
   const VioRunResult r = RunVioOnEuroc(dir, options);
   const Accuracy a = Evaluate(dir, r, /*se3=*/false);
+  VioRunOptions defaults;
+  defaults.vio.mode = VioMode::kStereo;
+  const Accuracy d = Evaluate(dir, RunVioOnEuroc(dir, defaults), /*se3=*/false);
   // The weather dataset's ORB-SLAM3 stereo figure, 1.71 m mean error over 745 m, scaled to the
   // route.
   const double limit = 1.71 * a.path_m / 745.0;
   std::printf(
       "simulated car, urban, clear, stereo-only, 400x300: %zu poses, %zu lost; path "
       "%.1f m, mean APE (first poses aligned) %.3f m (ORB-SLAM3 figure scaled: %.3f m = "
-      "1.71 m x %.1f / 745; guard 1.5x), RMSE %.3f m\n",
-      a.poses, a.lost, a.path_m, a.ape_mean_m, limit, a.path_m, a.ape_rmse_m);
+      "1.71 m x %.1f / 745; guard 1.5x), RMSE %.3f m; with the temporal gain-and-offset "
+      "refinement (the default) %.3f m (< 1.2x)\n",
+      a.poses, a.lost, a.path_m, a.ape_mean_m, limit, a.path_m, a.ape_rmse_m, d.ape_mean_m);
   EXPECT_EQ(a.lost, 0u);
+  EXPECT_EQ(d.lost, 0u);
+  EXPECT_LT(d.ape_mean_m, 1.2 * a.ape_mean_m) << "the refinement's cost in clear weather";
   // A regression guard, not the acceptance (see docs/VIO.md for the full 762 m route).
   // On this segment the mean error was 1.01 m before the stereo-only keyframe thresholds and
   // outlier threshold (every frame a keyframe, 4 px outliers), 0.35 m after. With the window's
@@ -364,6 +481,33 @@ TEST(SimAccuracy, CarStereoOnly) {
   // anchored observation per tracked landmark (the default since 2026-12-04 night): 0.454 m with
   // the left camera's (the default), 0.726 m with both cameras' (past the guard).
   EXPECT_LT(a.ape_mean_m, 1.5 * limit) << "regression guard (1.5 x the scaled ORB-SLAM3 figure)";
+}
+
+// The terrain car route in 100 % fog, stereo only, first 15 s (92 m): the haze's veil, fixed in
+// the image while the ground flows through it, pulls plain KLT towards no motion and pitches the
+// odometry (docs/VIO.md, 2026-12-05 last: -16 deg in 12 s before CLAHE's switches were fixed).
+// The temporal refinement with a gain and an offset (frontend.stereo_only_klt_gain_offset, the
+// stereo-only default since 2026-12-07) absorbs the veil's gradient. Measured 2026-12-07 (mean
+// error, first poses aligned / at the end): 2.13 / 10.15 m without, 0.96 / 3.53 m with it (0.69 /
+// 2.06 m when the refinement's conditioning check ignored the gain and offset).
+TEST(SimAccuracy, CarStereoOnlyInFogOnTerrainHoldsItsPitch) {
+  const std::string dir = Simulate("terrain_fog", "car", 15.0, 5.0, 20.0, 1, "fog:100", 0.5,
+                                   /*varied_asphalt=*/true, sim::WorldKind::kTerrain);
+  VioRunOptions options;
+  options.vio.mode = VioMode::kStereo;
+  const Accuracy a = Evaluate(dir, RunVioOnEuroc(dir, options), /*se3=*/false);
+  VioRunOptions plain = options;
+  plain.vio.frontend.stereo_only_klt_gain_offset = false;
+  const Accuracy b = Evaluate(dir, RunVioOnEuroc(dir, plain), /*se3=*/false);
+  std::printf(
+      "simulated car, terrain, fog 100 %%, stereo-only, 400x300, %.1f m: mean error (first poses "
+      "aligned) %.2f m (< 1.2), end %.2f m (< 0.5x plain) with the temporal gain-and-offset "
+      "refinement; plain KLT %.2f m, end %.2f m (> 5)\n",
+      a.path_m, a.ape_mean_m, a.end_m, b.ape_mean_m, b.end_m);
+  EXPECT_GT(b.end_m, 5.0) << "the case this test is about: plain KLT pitches in fog";
+  EXPECT_EQ(a.lost, 0u);
+  EXPECT_LT(a.ape_mean_m, 1.2);
+  EXPECT_LT(a.end_m, 0.5 * b.end_m);
 }
 
 TEST(SimAccuracy, CarStereoOnlyInDust) {
