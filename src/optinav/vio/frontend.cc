@@ -57,6 +57,7 @@ bool AlignWithGainOffset(const cv::Mat& templ_image, const Eigen::Vector2d& t,
     return q.x() >= margin && q.y() >= margin && q.x() < image.cols - margin &&
            q.y() < image.rows - margin;
   };
+  OPTINAV_CHECK(templ_image.type() == CV_8UC1 && target.type() == CV_8UC1);
   if (!inside(templ_image, t) || !inside(target, *p)) return false;
   std::vector<double> templ, samples;
   SampleGrid(templ_image, t.x(), t.y(), h, &templ);
@@ -82,6 +83,9 @@ bool AlignWithGainOffset(const cv::Mat& templ_image, const Eigen::Vector2d& t,
     // smaller eigenvalue of the position's information with them eliminated (Schur complement),
     // per pixel, at least (0.3 grey levels per pixel)^2. A window whose texture is a ramp
     // (a soft edge, the haze itself) moves as an offset does and is left to the pyramid.
+    // A flat target window leaves the gain undetermined (and the photometric block singular).
+    const double n = side * side, mean = hessian(2, 3) / n;
+    if (!(hessian(2, 2) / n - mean * mean >= 0.01)) return false;
     const Eigen::Matrix2d photometric_inverse = hessian.bottomRightCorner<2, 2>().inverse();
     const Eigen::Matrix2d spatial =
         (hessian.topLeftCorner<2, 2>() -

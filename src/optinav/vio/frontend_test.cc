@@ -700,6 +700,18 @@ TEST(Frontend, AlignmentWithGainAndOffset) {
   Eigen::Vector2d p(50.3, 49.6);
   EXPECT_FALSE(AlignWithGainOffset(ramp, Eigen::Vector2d(50, 50), ramp, 7, 20, &p));
   EXPECT_EQ(p, Eigen::Vector2d(50.3, 49.6)) << "left as it was";
+  // A ramp across, texture along: the gradient matrix alone is well conditioned, but a shift
+  // across changes the window as an offset does. Declined once the offset is free.
+  cv::Mat ramp_x(100, 100, CV_8UC1);
+  for (int y = 0; y < ramp_x.rows; ++y)
+    for (int x = 0; x < ramp_x.cols; ++x)
+      ramp_x.at<uint8_t>(y, x) = cv::saturate_cast<uint8_t>(2 * x + 30 * std::sin(0.9 * y) +
+                                                            20 * std::sin(2.3 * y + 1.0) + 40);
+  p = Eigen::Vector2d(50.3, 49.6);
+  EXPECT_FALSE(AlignWithGainOffset(ramp_x, Eigen::Vector2d(50, 50), ramp_x, 7, 20, &p));
+  // A flat window.
+  const cv::Mat flat(100, 100, CV_8UC1, cv::Scalar(128));
+  EXPECT_FALSE(AlignWithGainOffset(flat, Eigen::Vector2d(50, 50), flat, 7, 20, &p));
 }
 
 // fog_treatment_low_contrast_only: the local normalisation and the isotropy check act on the

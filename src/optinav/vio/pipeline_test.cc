@@ -748,6 +748,16 @@ TEST(VioConfig, StereoOnlyFrontendOptionsApplyInStereoModeOnly) {
   EXPECT_EQ(FrontendOptionsForMode(f, VioMode::kStereo).min_corner_isotropy, 0);
   f.stereo_only_local_norm_sigma_px = -2;
   EXPECT_NE(f.Check().find("stereo_only_local_norm_sigma_px"), std::string::npos);
+  // The temporal gain-and-offset refinement: its stereo-only value in stereo mode, always.
+  FrontendOptions g;
+  g.klt_gain_offset = false;
+  g.stereo_only_klt_gain_offset = true;
+  EXPECT_TRUE(FrontendOptionsForMode(g, VioMode::kStereo).klt_gain_offset);
+  EXPECT_FALSE(FrontendOptionsForMode(g, VioMode::kStereoImu).klt_gain_offset);
+  g.klt_gain_offset = true;
+  g.stereo_only_klt_gain_offset = false;
+  EXPECT_FALSE(FrontendOptionsForMode(g, VioMode::kStereo).klt_gain_offset);
+  EXPECT_TRUE(FrontendOptionsForMode(g, VioMode::kStereoImu).klt_gain_offset);
 }
 
 // The effective configuration of a run: every option, loading back to the same options.
