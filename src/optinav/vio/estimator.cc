@@ -917,10 +917,8 @@ std::optional<FrameEstimate> VioEstimator::RunBackend(FramePacket packet) {
       const BackendStats& bs = backend_.stats();
       spdlog::trace(
           "vio frame {:.3f}: kf {} tracked {} fb {} refined {} ransac {} detected {} stereo {} "
-          "flow "
-          "{:.1f} constrained {} landmarks {} outliers {} gated {} median {:.3f} iterations {} "
-          "shift "
-          "{:.3f} deg {:.3f} m gyro_bias {:.6f} {:.6f} {:.6f}",
+          "flow {:.1f} constrained {} landmarks {} outliers {} gated {} median {:.3f} "
+          "iterations {} shift {:.3f} deg {:.3f} m gyro_bias {:.6f} {:.6f} {:.6f}",
           t_ns * 1e-9, features.keyframe ? 1 : 0, fs.tracked, fs.rejected_fb, fs.klt_refined,
           fs.rejected_ransac, fs.detected, fs.stereo, fs.median_flow_px,
           bs.newest_constrained_landmarks, bs.num_landmarks, bs.num_outliers_removed, bs.num_gated,

@@ -410,15 +410,21 @@ void StereoFrontend::RefineStereo(const std::vector<cv::Mat>& left_pyramid,
   // window's mean gradient (on the EuRoC clip plain KLT over 9 px moved the 21 px matches by a
   // median 0.9 px, a tenth of them by more than 15 px).
   for (size_t i = 0; i < matched.size(); ++i) {
-    if (!matched[i]) continue;
-    const Eigen::Vector2d p0 = ToEigen((*right_pts)[i]);
-    Eigen::Vector2d p = p0;
-    if (AlignWithGainOffset(left_pyramid.front(), ToEigen(left_pts[i]), right_pyramid.front(),
-                            options_.stereo_refine_window_px / 2, options_.klt_max_iterations,
-                            &p) &&
-        (p - p0).norm() <= options_.forward_backward_px)
-      (*right_pts)[i] = ToCv(p);
+    if (matched[i])
+      RefineWithGainOffset(left_pyramid.front(), left_pts[i], right_pyramid.front(),
+                           options_.stereo_refine_window_px / 2, &(*right_pts)[i]);
   }
+}
+
+bool StereoFrontend::RefineWithGainOffset(const cv::Mat& templ, const cv::Point2f& t,
+                                          const cv::Mat& target, int h, cv::Point2f* p) const {
+  const Eigen::Vector2d p0 = ToEigen(*p);
+  Eigen::Vector2d q = p0;
+  if (!AlignWithGainOffset(templ, ToEigen(t), target, h, options_.klt_max_iterations, &q) ||
+      (q - p0).norm() > options_.forward_backward_px)
+    return false;
+  *p = ToCv(q);
+  return true;
 }
 
 bool StereoFrontend::DecideKeyframe(int64_t t_ns, const std::vector<Track>& tracks,
@@ -600,14 +606,9 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
         // Pyramidal KLT assumes constant brightness. Haze adds a veil that stays put in the image
         // while the texture flows through it: its gradient pulls the match towards no motion.
         // An offset (and gain) fitted over the window absorbs it to first order.
-        const Eigen::Vector2d p0 = ToEigen(cur_pts[i]);
-        Eigen::Vector2d p = p0;
-        if (AlignWithGainOffset(prev_pyramid_.front(), ToEigen(prev_pts[i]), left_pyramid.front(),
-                                options_.klt_window_px / 2, options_.klt_max_iterations, &p) &&
-            (p - p0).norm() <= options_.forward_backward_px) {
-          cur_pts[i] = ToCv(p);
+        if (RefineWithGainOffset(prev_pyramid_.front(), prev_pts[i], left_pyramid.front(),
+                                 options_.klt_window_px / 2, &cur_pts[i]))
           ++out.stats.klt_refined;
-        }
       }
       kept.push_back(
           {tracks_[i].id, cur_pts[i], tracks_[i].stereo_offset, tracks_[i].stereo_failures});

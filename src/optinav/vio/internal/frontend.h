@@ -263,6 +263,10 @@ class StereoFrontend {
                     const std::vector<cv::Mat>& right_pyramid,
                     const std::vector<cv::Point2f>& left_pts, const std::vector<uchar>& matched,
                     std::vector<cv::Point2f>* right_pts) const;
+  // *p aligned to `templ` around `t` (AlignWithGainOffset over a (2h + 1)^2 window): true, *p
+  // moved, when the alignment converges within forward_backward_px of where *p was.
+  bool RefineWithGainOffset(const cv::Mat& templ, const cv::Point2f& t, const cv::Mat& target,
+                            int h, cv::Point2f* p) const;
   // `first_new_id`: the id of the first corner detected in this frame (later ids are new too).
   bool DecideKeyframe(int64_t t_ns, const std::vector<Track>& tracks, uint64_t first_new_id);
 
