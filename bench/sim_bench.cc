@@ -23,7 +23,8 @@ struct UrbanScene {
   std::optional<BodyTrajectory> route;
 };
 
-void RenderPairs(benchmark::State& state, const std::string& weather, double scale) {
+void RenderPairs(benchmark::State& state, const std::string& weather, double scale,
+                 bool camera_noise = true) {
   const WeatherSpec spec = ParseWeather(weather);
   const UrbanScene scene(spec);
   const Renderer renderer(scene.world);
@@ -32,9 +33,12 @@ void RenderPairs(benchmark::State& state, const std::string& weather, double sca
   rig.body_from_left = CarRig().body_from_left;
   rig.body_from_right = CarRig().body_from_right;
   int64_t t = 2'000'000'000;
+  CameraNoiseOptions noise;
+  noise.enabled = camera_noise;
   cv::Mat left, right;
   for (auto _ : state) {
-    RenderStereo(renderer, rig, scene.route->At(t).world_from_body, t, spec, 1, &left, &right);
+    RenderStereo(renderer, rig, scene.route->At(t).world_from_body, t, spec, 1, noise, &left,
+                 &right);
     benchmark::DoNotOptimize(left.data);
     t += 30'000'000;
     if (t > scene.route->end_ns()) t = 2'000'000'000;
@@ -44,12 +48,18 @@ void RenderPairs(benchmark::State& state, const std::string& weather, double sca
 }
 
 void BM_StereoUrbanClear(benchmark::State& s) { RenderPairs(s, "none", 1.0); }
+// The same without the camera's noise (rendered before 2026-12-07): the noise model's cost.
+void BM_StereoUrbanClearNoNoise(benchmark::State& s) { RenderPairs(s, "none", 1.0, false); }
 void BM_StereoUrbanFog50(benchmark::State& s) { RenderPairs(s, "fog:50", 1.0); }
 void BM_StereoUrbanRain50(benchmark::State& s) { RenderPairs(s, "rain:50", 1.0); }
 void BM_StereoUrbanSnow50(benchmark::State& s) { RenderPairs(s, "snow:50", 1.0); }
 void BM_StereoUrbanDust50(benchmark::State& s) { RenderPairs(s, "dust:50", 1.0); }
 void BM_StereoUrbanSnow50Half(benchmark::State& s) { RenderPairs(s, "snow:50", 0.5); }
 BENCHMARK(BM_StereoUrbanClear)->Unit(benchmark::kMillisecond)->MinTime(3)->MeasureProcessCPUTime();
+BENCHMARK(BM_StereoUrbanClearNoNoise)
+    ->Unit(benchmark::kMillisecond)
+    ->MinTime(3)
+    ->MeasureProcessCPUTime();
 BENCHMARK(BM_StereoUrbanFog50)->Unit(benchmark::kMillisecond)->MinTime(3)->MeasureProcessCPUTime();
 BENCHMARK(BM_StereoUrbanRain50)->Unit(benchmark::kMillisecond)->MinTime(3)->MeasureProcessCPUTime();
 BENCHMARK(BM_StereoUrbanSnow50)->Unit(benchmark::kMillisecond)->MinTime(3)->MeasureProcessCPUTime();

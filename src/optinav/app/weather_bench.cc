@@ -126,6 +126,7 @@ sim::SimulationOptions SimOptions(const Sequence& s, const WeatherBenchOptions& 
   so.scale = o.scale;
   so.duration_s = o.duration_s;
   so.world.varied_asphalt = VariedAsphalt(s.world, o);
+  so.camera_noise = o.camera_noise;
   so.format = sim::DatasetFormat::kEuroc;
   so.out_dir = s.dir;
   so.force = true;
@@ -184,6 +185,7 @@ nlohmann::json RunRecord(const WeatherRunResult& r, const WeatherBenchOptions& o
           {"vio_config", config_text},
           {"vehicle_setting", VehicleModelName(o.vehicle)},
           {"asphalt", sim::AsphaltName(VariedAsphalt(r.world, o))},
+          {"camera_noise", o.camera_noise.ToString()},
           {"vio_options_yaml", options_yaml},
           {"vehicle", r.vehicle},
           {"wall_s", r.wall_s},
@@ -215,6 +217,9 @@ bool LoadRun(const std::string& stem, const WeatherBenchOptions& o, const std::s
       throw Error("made with another --config", {.file = path});
     if (j.value("asphalt", std::string("tiled")) != expect.at("asphalt"))
       throw Error("made on another --asphalt", {.file = path});
+    // Runs recorded before the camera noise (2026-12-07) ran on noise-free renderings.
+    if (j.value("camera_noise", std::string("off")) != expect.at("camera_noise"))
+      throw Error("made on another --camera-noise", {.file = path});
     if (j.value("vehicle_setting", std::string()) != VehicleModelName(o.vehicle))
       throw Error("made with another --vehicle (or before the setting)", {.file = path});
     if (j.value("vio_options_yaml", std::string()) != options_yaml)

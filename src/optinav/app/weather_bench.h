@@ -27,6 +27,7 @@
 #include "optinav/app/slurm_plan.h"
 #include "optinav/app/vio_run.h"
 #include "optinav/geometry/trajectory.h"
+#include "optinav/sim/camera_noise.h"
 #include "optinav/sim/weather.h"
 #include "optinav/sim/world.h"
 #include "optinav/vio/estimator.h"
@@ -76,6 +77,9 @@ struct WeatherBenchOptions {
   // (`optinav sim --asphalt tiled`); recorded with the sequences and runs, --reuse keeps only
   // the same.
   bool varied_asphalt = true;
+  // The cameras' noise (`optinav sim --camera-noise`; on by default); recorded with the sequences
+  // and runs, --reuse keeps only the same.
+  sim::CameraNoiseOptions camera_noise;
   double duration_s = 0;  // seconds of the car route to render (0: all of it); tests
   size_t max_frames = 0;  // frames the VIO processes (0: all); tests
   // A planned sweep (app/slurm_plan.h). task >= 0: only that task of WeatherBenchTasks() (one

@@ -66,12 +66,13 @@ std::string LostCell(const WeatherCell& c, const Runs& runs, int seeds) {
 std::string WeatherBenchTable(const WeatherBenchOptions& o, const Cells& cells, const Runs& runs) {
   std::string t = fmt::format(
       "Mean localization error after the start pose (m; the weather document's metric), car "
-      "route, {} (scale {:g}), `optinav vio` threaded, --vehicle {}{}{}; seeds 1..{}{}.\n"
+      "route, {} (scale {:g}), `optinav vio` threaded, --vehicle {}{}{}{}; seeds 1..{}{}.\n"
       "x clear: the condition's error over clear's (same world and mode). lost: the VIO "
       "reported tracking lost (the document: local map lost). ORB-SLAM3: stereo, 800x600, the "
       "weather document (SEEDS.md part 1).\n\n",
       ImageSize(o), o.scale, VehicleModelName(o.vehicle),
       o.varied_asphalt ? "" : ", --asphalt tiled",
+      o.camera_noise.enabled ? "" : ", --camera-noise off",
       o.duration_s > 0 ? fmt::format(", first {:g} s", o.duration_s) : "", o.seeds,
       o.seeds > 1 ? " (mean [max] over seeds)" : "");
   t += "| world | condition | mode | mean error (m) | x clear | odometry (m) | APE SE(3) (m) | "
@@ -182,6 +183,7 @@ nlohmann::json WeatherBenchJson(const WeatherBenchOptions& o, const WeatherBench
                    {"max_frames", o.max_frames},
                    {"vehicle", VehicleModelName(o.vehicle)},
                    {"asphalt", sim::AsphaltName(o.varied_asphalt)},
+                   {"camera_noise", o.camera_noise.ToString()},
                    {"vio", "threaded"}};
   j["cells"] = nlohmann::json::array();
   for (const WeatherCell& c : result.cells) j["cells"].push_back(CellJson(c));
@@ -347,8 +349,9 @@ void WriteWeatherPlot(const std::string& stem, const WeatherBenchOptions& option
   Canvas cv(width, height);
   cv.Rect(0, 0, width, height, "#ffffff");
   cv.Text(10, 20,
-          fmt::format("optinav bench weather: mean error after the start pose, car route, {}{}",
-                      ImageSize(options), options.varied_asphalt ? "" : ", tiled asphalt"),
+          fmt::format("optinav bench weather: mean error after the start pose, car route, {}{}{}",
+                      ImageSize(options), options.varied_asphalt ? "" : ", tiled asphalt",
+                      options.camera_noise.enabled ? "" : ", no camera noise"),
           13);
   // Legend.
   double lx = left;

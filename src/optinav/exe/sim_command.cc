@@ -32,6 +32,7 @@ struct SimFlags {
   std::string wind = "0,0";
   bool particles_still = false;
   std::string asphalt;  // "" = the default: varied on the urban world
+  std::string camera_noise = "on";
 };
 
 // "auto" (on for drone routes), "off", or WxH.
@@ -65,6 +66,7 @@ sim::SimulationOptions ToOptions(const SimFlags& f) {
                   {.field = "--asphalt"});
     }
     o.world.varied_asphalt = varied && o.world.kind == sim::WorldKind::kUrban;
+    o.camera_noise = sim::ParseCameraNoise(f.camera_noise, "--camera-noise");
     if (f.format != "euroc" && f.format != "airsim") {
       throw Error(fmt::format("unknown format '{}' (euroc or airsim)", f.format),
                   {.field = "--format"});
@@ -135,6 +137,11 @@ void AddSimFlags(CLI::App& app, SimFlags& f) {
                  "urban road: varied (the default: 8 asphalt variants, one per 8 m, picked by a "
                  "hash, no exact repetition) | tiled (one texture repeating every 8 m, as "
                  "rendered before 2026-12-06)");
+  app.add_option("--camera-noise", f.camera_noise,
+                 "on | off | READ:SHOT: the cameras' noise before 8-bit rounding, sigma^2 = READ^2 "
+                 "+ SHOT * grey level (on: 0.8:0.02, measured on EuRoC's cam0; off: as rendered "
+                 "before 2026-12-07)")
+      ->capture_default_str();
   AddCommonFlags(app, f);
   app.add_option("--speed", f.speed, "drone speed (m/s)")->capture_default_str();
   app.add_option("--altitude", f.altitude, "drone altitude above ground (m)")

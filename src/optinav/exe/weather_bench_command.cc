@@ -19,6 +19,7 @@ namespace {
 struct WeatherFlags {
   std::string worlds = "urban,terrain", conditions, modes = "stereo";
   std::string plan, slurm_args, vehicle = "auto", asphalt = "varied";
+  std::string camera_noise = "on";
 };
 
 void AddFlags(CLI::App& app, app::WeatherBenchOptions* o, WeatherFlags* f) {
@@ -47,6 +48,9 @@ void AddFlags(CLI::App& app, app::WeatherBenchOptions* o, WeatherFlags* f) {
   app.add_option("--asphalt", f->asphalt,
                  "varied|tiled: the urban road's asphalt (as `optinav sim --asphalt`)")
       ->capture_default_str();
+  app.add_option("--camera-noise", f->camera_noise,
+                 "on|off|READ:SHOT: the cameras' noise (as `optinav sim --camera-noise`)")
+      ->capture_default_str();
   app.add_option("--duration", o->duration_s, "seconds of the car route (0: all of it)")
       ->capture_default_str();
   app.add_option(
@@ -62,6 +66,7 @@ void ApplyFlags(const WeatherFlags& f, app::WeatherBenchOptions* o) {
   o->vehicle = ParseVehicle(f.vehicle, "--vehicle");
   try {
     o->varied_asphalt = sim::ParseAsphalt(f.asphalt, "--asphalt");
+    o->camera_noise = sim::ParseCameraNoise(f.camera_noise, "--camera-noise");
     app::ParseWeatherBenchLists(f.worlds, f.conditions, f.modes, o);
   } catch (const Error& e) {
     throw cli::UsageError(e.message(), e.context().field);

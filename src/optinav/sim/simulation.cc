@@ -154,10 +154,19 @@ std::string WorldName(WorldKind k) {
 // One camera's image with its weather (the stereo pair and the nadir camera render this way).
 void RenderWithWeather(const Renderer& renderer, const camera::PinholeCamera& cam,
                        const Rigid3d& world_from_cam, int64_t t_ns, const WeatherSpec& weather,
-                       uint64_t seed, cv::Mat* img) {
+                       uint64_t seed, const CameraNoiseOptions& noise, int camera_index,
+                       cv::Mat* img) {
   cv::Mat depth;
   renderer.Render(cam, world_from_cam, img, &depth);
-  ApplyWeather(*img, depth, cam, world_from_cam, t_ns, weather, seed);
+  if (!noise.enabled) {
+    ApplyWeather(*img, depth, cam, world_from_cam, t_ns, weather, seed);
+    return;
+  }
+  // The weather on the unrounded light, then the sensor's noise and its rounding to 8 bits.
+  cv::Mat light;
+  img->convertTo(light, CV_32FC3);
+  ApplyWeather(light, depth, cam, world_from_cam, t_ns, weather, seed);
+  *img = ExposeToEightBits(light, noise, CameraNoiseStream(seed, t_ns, camera_index));
 }
 
 }  // namespace
@@ -186,6 +195,7 @@ std::string SimulationOptions::Check() const {
   if (png_compression < 0 || png_compression > 9) return "png compression not in [0, 9]";
   if (const std::string m = imu.Check(); !m.empty()) return m;
   if (const std::string m = gnss.Check(); !m.empty()) return m;
+  if (const std::string m = camera_noise.Check(); !m.empty()) return m;
   if (baro.enabled) {
     if (const std::string m = baro.Check(); !m.empty()) return m;
   }
@@ -221,6 +231,8 @@ nlohmann::ordered_json MarkerParameters(const SimulationOptions& options) {
   // Terrain only: its ground in variants per cell since 2026-12-07; a terrain marker without it
   // was written over the ground that repeats every 5 m, which this binary no longer renders.
   if (options.world.kind == WorldKind::kTerrain) j["ground"] = "varied";
+  // Since 2026-12-07; a marker without it was rendered without the camera's noise.
+  if (options.camera_noise.enabled) j["camera_noise"] = options.camera_noise.ToString();
   j["seed"] = options.seed;
   j["format"] = FormatName(options.format);
   j["scale"] = options.scale;
@@ -256,9 +268,10 @@ bool IsRenderingOf(const std::string& dir, const SimulationOptions& options, std
     return fail(fmt::format("renderer {} (this binary's: {})", renderer.dump(), kRendererVersion));
   }
   const nlohmann::ordered_json want = MarkerParameters(options);
-  for (const char* key : {"world", "ortho", "route", "weather", "particles_still", "asphalt",
-                          "ground", "seed", "format", "scale", "requested_duration_s", "speed_m_s",
-                          "altitude_m", "drag_per_s", "wind_m_s"}) {
+  for (const char* key :
+       {"world", "ortho", "route", "weather", "particles_still", "asphalt", "ground",
+        "camera_noise", "seed", "format", "scale", "requested_duration_s", "speed_m_s",
+        "altitude_m", "drag_per_s", "wind_m_s"}) {
     nlohmann::ordered_json have = j.contains(key) ? j.at(key) : nlohmann::ordered_json();
     // Markers written before 2026-12-06: without the asphalt (tiled), and without the requested
     // duration, which the rendered one stands for when it was reached (0: the whole route).
@@ -380,7 +393,7 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
     for (; next_nadir < nadir_times.size() && nadir_times[next_nadir] <= until; ++next_nadir) {
       const int64_t t = nadir_times[next_nadir];
       cv::Mat img = RenderNadir(renderer, options.nadir, traj.At(t).world_from_body, t,
-                                options.weather, options.seed);
+                                options.weather, options.seed, options.camera_noise);
       const std::string name = fmt::format("{}.png", t);
       nadir_list.push_back({.t_ns = t, .path = name});
       if (!queue.Push({(nadir_dir / name).string(), std::move(img)})) return false;
@@ -394,8 +407,8 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
       const BodyState st = traj.At(t);
       const Rigid3d world_from_left = st.world_from_body * rig.body_from_left;
       cv::Mat left, right;
-      RenderStereo(renderer, rig, st.world_from_body, t, options.weather, options.seed, &left,
-                   &right);
+      RenderStereo(renderer, rig, st.world_from_body, t, options.weather, options.seed,
+                   options.camera_noise, &left, &right);
       std::string lname, rname;
       if (euroc) {
         lname = rname = fmt::format("{}.png", t);
@@ -546,23 +559,25 @@ SimulationSummary RunSimulation(const SimulationOptions& options,
 }
 
 void RenderStereo(const Renderer& renderer, const SensorRig& rig, const Rigid3d& world_from_body,
-                  int64_t t_ns, const WeatherSpec& weather, uint64_t seed, cv::Mat* left,
-                  cv::Mat* right) {
-  auto one = [&](const camera::PinholeCamera& cam, const Rigid3d& body_from_cam, cv::Mat* img) {
-    RenderWithWeather(renderer, cam, world_from_body * body_from_cam, t_ns, weather, seed, img);
+                  int64_t t_ns, const WeatherSpec& weather, uint64_t seed,
+                  const CameraNoiseOptions& noise, cv::Mat* left, cv::Mat* right) {
+  auto one = [&](const camera::PinholeCamera& cam, const Rigid3d& body_from_cam, int index,
+                 cv::Mat* img) {
+    RenderWithWeather(renderer, cam, world_from_body * body_from_cam, t_ns, weather, seed, noise,
+                      index, img);
   };
   auto right_done =
-      std::async(std::launch::async, [&] { one(rig.right, rig.body_from_right, right); });
-  one(rig.left, rig.body_from_left, left);
+      std::async(std::launch::async, [&] { one(rig.right, rig.body_from_right, 1, right); });
+  one(rig.left, rig.body_from_left, 0, left);
   right_done.get();
 }
 
 cv::Mat RenderNadir(const Renderer& renderer, const NadirCameraOptions& nadir,
                     const Rigid3d& world_from_body, int64_t t_ns, const WeatherSpec& weather,
-                    uint64_t seed) {
+                    uint64_t seed, const CameraNoiseOptions& noise) {
   cv::Mat img;
   RenderWithWeather(renderer, nadir.Camera(), world_from_body * NadirCameraMount(), t_ns, weather,
-                    seed, &img);
+                    seed, noise, 2, &img);
   return img;
 }
 

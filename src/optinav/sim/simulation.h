@@ -15,6 +15,7 @@
 #include <optional>
 #include <string>
 
+#include "optinav/sim/camera_noise.h"
 #include "optinav/sim/rig.h"
 #include "optinav/sim/sensors.h"
 #include "optinav/sim/weather.h"
@@ -47,6 +48,9 @@ struct SimulationOptions {
   NadirCameraOptions nadir;      // cam2/ when enabled (its own size: `scale` does not apply)
   std::optional<SensorRig> rig;  // default: CarRig() for car routes, DroneRig() for drones
   int png_compression = 1;       // 0-9; 1 is fast and still compresses well
+  // The cameras' noise and 8-bit rounding (sim/camera_noise.h), on every camera; recorded in
+  // the completion marker.
+  CameraNoiseOptions camera_noise;
 
   // Empty when valid, else a message naming the offending option and value.
   std::string Check() const;
@@ -69,10 +73,11 @@ inline constexpr int kRendererVersion = 2;
 
 // Whether `dir` holds a finished rendering of `options` by this renderer version: its
 // sim_complete.json names the same world (and orthophoto), route, weather, frozen particles or
-// not, asphalt (a marker without the key is tiled), seed, format, scale, requested duration and,
-// on drone routes, speed, altitude, drag and wind. The sensors' options (IMU, GNSS, baro, nadir
-// camera, rig) are not compared. When it does not, `why` (if given) names the first difference.
-// The benchmarks' --reuse keeps a sequence only when this holds.
+// not, asphalt (a marker without the key is tiled), camera noise (without the key: none), seed,
+// format, scale, requested duration and, on drone routes, speed, altitude, drag and wind. The
+// sensors' options (IMU, GNSS, baro, nadir camera, rig) are not compared. When it does not, `why`
+// (if given) names the first difference. The benchmarks' --reuse keeps a sequence only when this
+// holds.
 bool IsRenderingOf(const std::string& dir, const SimulationOptions& options,
                    std::string* why = nullptr);
 
@@ -86,13 +91,13 @@ class Renderer;
 // One stereo pair with weather at body pose `world_from_body` and time t_ns: the two cameras
 // render (and get their weather) concurrently.
 void RenderStereo(const Renderer& renderer, const SensorRig& rig, const Rigid3d& world_from_body,
-                  int64_t t_ns, const WeatherSpec& weather, uint64_t seed, cv::Mat* left,
-                  cv::Mat* right);
+                  int64_t t_ns, const WeatherSpec& weather, uint64_t seed,
+                  const CameraNoiseOptions& noise, cv::Mat* left, cv::Mat* right);
 
 // One nadir frame with weather (the camera at body_from_cam of `nadir`: NadirCameraMount()).
 cv::Mat RenderNadir(const Renderer& renderer, const NadirCameraOptions& nadir,
                     const Rigid3d& world_from_body, int64_t t_ns, const WeatherSpec& weather,
-                    uint64_t seed);
+                    uint64_t seed, const CameraNoiseOptions& noise);
 
 // The weather document's 36 sequences: for `urban` and `terrain`, default, rain, snow, leaves
 // (at 50 %), fog and dust at 25/50/75/100 %, and for urban also road wetness/snow/leaves at

@@ -266,6 +266,8 @@ TEST(Simulation, IsRenderingOfComparesTheRecordedParameters) {
   differs("weather", [](SimulationOptions* x) { x->weather = ParseWeather("fog:75"); });
   differs("particles_still", [](SimulationOptions* x) { x->weather.particles_still = true; });
   differs("asphalt", [](SimulationOptions* x) { x->world.varied_asphalt = false; });
+  differs("camera_noise", [](SimulationOptions* x) { x->camera_noise.enabled = false; });
+  differs("camera_noise", [](SimulationOptions* x) { x->camera_noise.read_sigma = 2; });
   differs("seed", [](SimulationOptions* x) { x->seed = 12; });
   differs("format", [](SimulationOptions* x) { x->format = DatasetFormat::kAirsim; });
   differs("scale", [](SimulationOptions* x) { x->scale = 0.3; });
@@ -294,6 +296,17 @@ TEST(Simulation, IsRenderingOfComparesTheRecordedParameters) {
   EXPECT_FALSE(IsRenderingOf(o.out_dir, tiled));
   tiled.duration_s = 0;  // the whole route: the marker cannot tell, so it is taken
   EXPECT_TRUE(IsRenderingOf(o.out_dir, tiled));
+
+  // A marker of before the camera noise (2026-12-07): rendered without it.
+  nlohmann::json quiet = j;
+  quiet.erase("camera_noise");
+  testing::WriteFile(marker, quiet.dump(2));
+  EXPECT_FALSE(IsRenderingOf(o.out_dir, tiled, &why));
+  EXPECT_EQ(why, "camera_noise: absent (wanted \"0.8:0.02\")");
+  tiled.camera_noise.enabled = false;
+  EXPECT_TRUE(IsRenderingOf(o.out_dir, tiled, &why)) << why;
+  tiled.camera_noise.enabled = true;
+  testing::WriteFile(marker, j.dump(2));
 
   // Terrain: a marker of before 2026-12-07 has no "ground" (the ground that repeated every 5 m,
   // which this renderer no longer makes).

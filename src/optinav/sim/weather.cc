@@ -132,9 +132,15 @@ const ParticleModel* ModelFor(WeatherKind kind) {
   }
 }
 
+// On an 8-bit image (rounded) or on the unrounded light of a CV_32FC3 one.
 inline void BlendPixel(cv::Mat& img, int x, int y, const cv::Vec3f& colour, float a) {
   if (a <= 0) return;
   a = std::min(a, 1.0f);
+  if (img.depth() == CV_32F) {
+    auto& px = img.at<cv::Vec3f>(y, x);
+    for (int c = 0; c < 3; ++c) px[c] = px[c] * (1 - a) + colour[c] * a;
+    return;
+  }
   auto& px = img.at<cv::Vec3b>(y, x);
   for (int c = 0; c < 3; ++c) {
     px[c] = static_cast<uint8_t>(std::lround(px[c] * (1 - a) + colour[c] * a));
@@ -306,6 +312,7 @@ void ApplyHaze(cv::Mat& bgr, const cv::Mat& depth, const camera::PinholeCamera& 
   const float beta = has_fog ? static_cast<float>(3.912 / hz.visibility_m) : 0.0f;
   const float loss = static_cast<float>(hz.contrast_loss);
   const int dim = static_cast<int>(std::lround(256 * (1 - hz.dimming)));  // 8.8 fixed point
+  const float dimf = static_cast<float>(1 - hz.dimming);
   // Squared normalised x of every column: the ray length is sqrt(1 + xn^2 + yn^2) times the
   // depth along the optical axis.
   std::vector<float> xn2(bgr.cols);
@@ -315,7 +322,9 @@ void ApplyHaze(cv::Mat& bgr, const cv::Mat& depth, const camera::PinholeCamera& 
   }
   cv::parallel_for_(cv::Range(0, bgr.rows), [&](const cv::Range& range) {
     for (int y = range.start; y < range.end; ++y) {
-      auto* row = bgr.ptr<uint8_t>(y);
+      const bool is_float = bgr.depth() == CV_32F;
+      auto* row = is_float ? nullptr : bgr.ptr<uint8_t>(y);
+      float* light = is_float ? bgr.ptr<float>(y) : nullptr;
       const float* drow = depth.ptr<float>(y);
       const float yn = static_cast<float>((y - cam.cy) / cam.fy);
       const float one_yn2 = 1 + yn * yn;
@@ -324,6 +333,14 @@ void ApplyHaze(cv::Mat& bgr, const cv::Mat& depth, const camera::PinholeCamera& 
         float tau = 1.0f;
         if (has_fog) {
           tau = (z > 0 && z < 1e30f) ? std::exp(-beta * z * std::sqrt(one_yn2 + xn2[x])) : 0.0f;
+        }
+        if (light) {  // unrounded: the camera's noise and rounding come later
+          const float keep = tau * (1 - loss);
+          float* p = light + 3 * x;
+          for (int c = 0; c < 3; ++c) {
+            p[c] = p[c] * dimf * keep + static_cast<float>(hz.airlight_int[c]) * (1 - keep);
+          }
+          continue;
         }
         // Fraction of the scene kept, 0..256 (8-bit blending is all an 8-bit image needs).
         const int keep = static_cast<int>(tau * (1 - loss) * 256 + 0.5f);
@@ -411,9 +428,10 @@ double WeatherVisibilityM(const WeatherSpec& spec) {
 namespace {
 
 void CheckInputs(const cv::Mat& bgr, const cv::Mat& depth_m, const camera::PinholeCamera& camera) {
-  if (bgr.type() != CV_8UC3 || depth_m.type() != CV_32F || bgr.size() != depth_m.size()) {
+  if ((bgr.type() != CV_8UC3 && bgr.type() != CV_32FC3) || depth_m.type() != CV_32F ||
+      bgr.size() != depth_m.size()) {
     throw Error(
-        fmt::format("weather needs a CV_8UC3 image and a CV_32F depth of the same "
+        fmt::format("weather needs a CV_8UC3 (or CV_32FC3) image and a CV_32F depth of the same "
                     "size (got {}x{} type {}, {}x{} type {})",
                     bgr.cols, bgr.rows, bgr.type(), depth_m.cols, depth_m.rows, depth_m.type()),
         {.field = "weather"});

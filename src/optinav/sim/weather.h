@@ -78,7 +78,8 @@ std::string WeatherKindName(WeatherKind kind);
 // Visibility (m) of the haze of `spec` (fog, dust, rain), +inf when it has none.
 double WeatherVisibilityM(const WeatherSpec& spec);
 
-// Applies the image effects of `spec` to `bgr` (CV_8UC3, modified in place).
+// Applies the image effects of `spec` to `bgr` (modified in place): CV_8UC3, or CV_32FC3 holding
+// unrounded grey levels that a camera model rounds afterwards (sim/camera_noise.h).
 //  depth_m: CV_32F, same size, the distance along the optical axis (camera z) of each pixel's
 //           surface in metres; non-positive, NaN or +inf means sky (nothing within reach).
 //  camera: the model that produced `bgr` (intrinsics and distortion are honoured when

@@ -207,6 +207,26 @@ TEST(Weather, NadirCameraHazeFollowsDistanceScale) {
   EXPECT_GT(cv::norm(d, ground, cv::NORM_L1), 0);
 }
 
+// The camera noise model (sim/camera_noise.h) applies the weather to the unrounded light
+// (CV_32FC3): the same weather as on 8 bits, only without its intermediate rounding.
+TEST(Weather, UnroundedLightGetsTheSameWeather) {
+  const Frame& f = ClearUrbanFrame();
+  for (const char* kind : {"fog:100", "dust:100", "rain:75", "snow:75", "leaves:75"}) {
+    const WeatherSpec spec = ParseWeather(kind);
+    cv::Mat light, rounded;
+    f.bgr.convertTo(light, CV_32FC3);
+    ApplyWeather(light, f.depth, f.camera, f.world_from_cam, 12'000'000'000, spec, 9);
+    light.convertTo(rounded, CV_8UC3);
+    cv::Mat diff;
+    cv::absdiff(rounded, With(spec), diff);
+    double worst = 0;
+    cv::minMaxLoc(diff.reshape(1), nullptr, &worst);
+    // Differ by a rounding, two where a particle is blended over the hazed (rounded) scene.
+    EXPECT_LE(worst, 2) << kind;
+    EXPECT_LT(cv::mean(diff)[0], 0.5) << kind;
+  }
+}
+
 TEST(Weather, RejectsMismatchedInputs) {
   camera::PinholeCamera cam = CarRig().Scaled(0.4).left;
   cv::Mat img(cam.height, cam.width, CV_8UC3, cv::Scalar::all(0));

@@ -115,6 +115,7 @@ std::map<std::string, Section> OptionSections(VioOptions& o) {
         {"epipolar_px", &f.epipolar_px},
         {"border_px", &f.border_px},
         {"min_corner_response", &f.min_corner_response},
+        {"corner_noise_floor", &f.corner_noise_floor},
         {"detect_min_eigen", &f.detect_min_eigen},
         {"min_corner_isotropy", &f.min_corner_isotropy},
         {"clahe_clip_limit", &f.clahe_clip_limit},
@@ -134,6 +135,7 @@ std::map<std::string, Section> OptionSections(VioOptions& o) {
         {"keyframe_min_parallax_px", &f.keyframe_min_parallax_px},
         {"stereo_only_keyframe_min_tracked_ratio", &f.stereo_only_keyframe_min_tracked_ratio},
         {"stereo_only_local_norm_sigma_px", &f.stereo_only_local_norm_sigma_px},
+        {"stereo_only_corner_noise_floor", &f.stereo_only_corner_noise_floor},
         {"stereo_only_min_corner_isotropy", &f.stereo_only_min_corner_isotropy},
         {"stereo_only_keyframe_min_parallax_px", &f.stereo_only_keyframe_min_parallax_px}}},
       {"backend",
@@ -371,6 +373,8 @@ FrontendOptions FrontendOptionsForMode(FrontendOptions f, VioMode mode) {
     if (f.stereo_only_min_corner_isotropy >= 0)
       f.min_corner_isotropy = f.stereo_only_min_corner_isotropy;
     f.klt_gain_offset = f.stereo_only_klt_gain_offset;
+    if (f.stereo_only_corner_noise_floor >= 0)
+      f.corner_noise_floor = f.stereo_only_corner_noise_floor;
   }
   return f;
 }

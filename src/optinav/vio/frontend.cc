@@ -129,6 +129,25 @@ double MedianLocalStd(const cv::Mat& grey) {
   return stds[stds.size() / 2];
 }
 
+double NoiseSigma(const cv::Mat& grey) {
+  OPTINAV_CHECK(grey.type() == CV_8UC1);
+  std::vector<int> r;
+  r.reserve(static_cast<size_t>((grey.rows / 2 + 1) * (grey.cols / 2 + 1)));
+  for (int y = 1; y + 1 < grey.rows; y += 2) {
+    const uint8_t* a = grey.ptr<uint8_t>(y - 1);
+    const uint8_t* m = grey.ptr<uint8_t>(y);
+    const uint8_t* b = grey.ptr<uint8_t>(y + 1);
+    for (int x = 1; x + 1 < grey.cols; x += 2) {
+      const int v = a[x - 1] - 2 * a[x] + a[x + 1] - 2 * m[x - 1] + 4 * m[x] - 2 * m[x + 1] +
+                    b[x - 1] - 2 * b[x] + b[x + 1];
+      r.push_back(std::abs(v));
+    }
+  }
+  if (r.empty()) return 0;
+  std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
+  return r[r.size() / 2] / (6 * 0.6745);
+}
+
 double CornerIsotropy(const cv::Mat& grey, cv::Point2f p, int half) {
   OPTINAV_CHECK(grey.type() == CV_8UC1 && half >= 1);
   const int cx = cvRound(p.x), cy = cvRound(p.y);
@@ -206,6 +225,9 @@ std::string FrontendOptions::Check() const {
   if (!(epipolar_px > 0)) return "epipolar_px must be > 0";
   if (border_px < 0) return "border_px must be >= 0";
   if (!(min_corner_response >= 0)) return "min_corner_response must be >= 0";
+  if (!(corner_noise_floor >= 0)) return "corner_noise_floor must be >= 0";
+  if (!(stereo_only_corner_noise_floor >= 0 || stereo_only_corner_noise_floor == -1))
+    return "stereo_only_corner_noise_floor must be >= 0 or -1 (as corner_noise_floor)";
   if (!(clahe_clip_limit >= 0)) return "clahe_clip_limit must be >= 0";
   if (!(clahe_below_std >= 0)) return "clahe_below_std must be >= 0";
   if (!(clahe_below_local_std >= 0)) return "clahe_below_local_std must be >= 0";
@@ -271,11 +293,22 @@ void StereoFrontend::Detect(const cv::Mat& image, const std::vector<cv::Mat>& py
   mask.rowRange(std::max(0, mask.rows - b), mask.rows).setTo(0);
   mask.colRange(0, std::min(b, mask.cols)).setTo(0);
   mask.colRange(std::max(0, mask.cols - b), mask.cols).setTo(0);
-  if (options_.min_corner_response > 0) {
-    // Pixels below the absolute floor take no corner (same response as goodFeaturesToTrack's).
+  double floor = options_.min_corner_response;
+  noise_sigma_ = 0;
+  // Not on images prepared with a gain that varies across them (CLAHE, local normalisation): one
+  // noise figure does not describe them. The corner check (detect_min_eigen) serves CLAHE's.
+  const bool local_gain = (low_contrast_ && options_.clahe_clip_limit > 0) ||
+                          (options_.local_norm_sigma_px > 0 && FogTreatment());
+  if (options_.corner_noise_floor > 0 && !local_gain) {
+    noise_sigma_ = NoiseSigma(image);
+    floor = std::max(floor, options_.corner_noise_floor * kNoiseCornerResponsePerSigma2 *
+                                noise_sigma_ * noise_sigma_);
+  }
+  if (floor > 0) {
+    // Pixels below the floor take no corner (same response as goodFeaturesToTrack's).
     cv::Mat response, strong;
     cv::cornerMinEigenVal(image, response, options_.corner_block_px, 3);
-    cv::compare(response, options_.min_corner_response, strong, cv::CMP_GE);
+    cv::compare(response, floor, strong, cv::CMP_GE);
     mask &= strong;
   }
   for (const Track& t : *tracks) {
@@ -657,6 +690,7 @@ FrontendOutput StereoFrontend::Process(int64_t t_ns, const cv::Mat& left, const 
   const uint64_t first_new_id = next_id_;
   Detect(left_eq, left_pyramid, &tracks);
   out.stats.detected = static_cast<int>(tracks.size() - before);
+  out.stats.noise_sigma = noise_sigma_;
   lap("frontend.detect");
 
   if (cur_from_prev) {

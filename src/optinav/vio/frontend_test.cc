@@ -432,6 +432,72 @@ TEST(Frontend, NewCornersAreTrackableAtTheNextFrame) {
   EXPECT_GT(static_cast<int>(at_klt.detected), static_cast<int>(without.detected) - without.lost);
 }
 
+TEST(Frontend, NoiseSigmaMeasuresTheNoiseNotTheTexture) {
+  cv::theRNG().state = 12345;
+  cv::Mat noise(300, 400, CV_32F);
+  cv::randn(noise, 0, 2.0);
+  cv::Mat flat;
+  cv::Mat(noise + 120.0f).convertTo(flat, CV_8U);
+  const double flat_sigma = NoiseSigma(flat);
+  const io::EurocDataset ds = OpenMicro();
+  const cv::Mat real = cv::imread(ds.cam0->images[0].path, cv::IMREAD_GRAYSCALE);
+  cv::Mat real_f, noisier;
+  real.convertTo(real_f, CV_32F);
+  cv::Mat more(real.size(), CV_32F);
+  cv::randn(more, 0, 3.0);
+  cv::Mat(real_f + more).convertTo(noisier, CV_8U);
+  const double real_sigma = NoiseSigma(real), noisier_sigma = NoiseSigma(noisier);
+  std::printf(
+      "noise sigma: flat grey + 2.0 noise %.2f; EuRoC cam0 %.2f (Immerkaer on its flattest 30 %%: "
+      "1.33), with 3.0 added %.2f (%.2f if independent)\n",
+      flat_sigma, real_sigma, noisier_sigma, std::hypot(real_sigma, 3.0));
+  EXPECT_NEAR(flat_sigma, 2.0, 0.2);
+  EXPECT_GT(real_sigma, 1.0);
+  EXPECT_LT(real_sigma, 2.5);
+  EXPECT_NEAR(noisier_sigma, std::hypot(real_sigma, 3.0), 0.5);
+  EXPECT_EQ(NoiseSigma(cv::Mat(50, 50, CV_8U, cv::Scalar(7))), 0);
+}
+
+// Texture hidden below the noise (the right half of a real frame replaced by flat grey with 2
+// grey levels of noise, as far fog leaves it): without a floor each grid cell there still
+// yields its best corners, which are noise; with the noise floor (stereo-only's default, 6x the
+// noise's median response) fewer than half of them remain (the noise's strongest responses reach
+// 8-9x its median over such an area) and their budget goes to the texture. Measured: 76 on texture
+// and 74 on noise without, 89 and 34 with it.
+TEST(Frontend, NoCornersInCellsOfNoiseAlone) {
+  const io::EurocDataset ds = OpenMicro();
+  const camera::StereoRig rig = io::ToStereoRig(ds.cam0->calibration, ds.cam1->calibration);
+  cv::Mat image = cv::imread(ds.cam0->images[0].path, cv::IMREAD_GRAYSCALE);
+  const int half = image.cols / 2;
+  cv::theRNG().state = 777;
+  cv::Mat noise(image.rows, image.cols - half, CV_32F);
+  cv::randn(noise, 0, 2.0);
+  cv::Mat(noise + 140.0f).convertTo(image.colRange(half, image.cols), CV_8U);
+  auto corners = [&](double floor) {
+    FrontendOptions o;
+    o.corner_noise_floor = floor;
+    o.clahe_clip_limit = 0;  // the image as it is
+    StereoFrontend frontend(rig, o);
+    const FrontendOutput out = frontend.Process(1, image, image, std::nullopt, true);
+    std::pair<int, int> n{0, 0};  // textured half, noise half
+    for (const StereoObservation& ob : out.observations)
+      ++(rig.left.NormalizedToPixel(ob.left).x() < half ? n.first : n.second);
+    return std::make_pair(n, out.stats.noise_sigma);
+  };
+  const auto [without, s0] = corners(0);
+  const auto [with, sigma] = corners(FrontendOptions{}.stereo_only_corner_noise_floor);
+  std::printf(
+      "EuRoC frame, right half noise only: without a floor %d corners on texture, %d on noise; "
+      "with the noise floor (%.0fx, frame noise %.2f) %d on texture, %d on noise\n",
+      without.first, without.second, FrontendOptions{}.stereo_only_corner_noise_floor, sigma,
+      with.first, with.second);
+  EXPECT_EQ(s0, 0);
+  EXPECT_GT(sigma, 1.0);
+  EXPECT_GT(without.second, 20);
+  EXPECT_LT(with.second, without.second / 2);
+  EXPECT_GT(with.first, without.first);  // the budget the noise took goes to the texture
+}
+
 // A corner detected at a keyframe that KLT cannot follow into the next frame is not a track
 // the view has lost. Counted as one, a still camera over faint texture (the same image at a
 // tenth of its contrast, without the trackability check, so that two in five of the fresh

@@ -754,6 +754,15 @@ TEST(VioConfig, StereoOnlyFrontendOptionsApplyInStereoModeOnly) {
   g.stereo_only_klt_gain_offset = true;
   EXPECT_TRUE(FrontendOptionsForMode(g, VioMode::kStereo).klt_gain_offset);
   EXPECT_FALSE(FrontendOptionsForMode(g, VioMode::kStereoImu).klt_gain_offset);
+  // The corner noise floor: stereo-only's when >= 0, else the shared one.
+  FrontendOptions n;
+  EXPECT_EQ(FrontendOptionsForMode(n, VioMode::kStereo).corner_noise_floor, 6);
+  EXPECT_EQ(FrontendOptionsForMode(n, VioMode::kStereoImu).corner_noise_floor, 0);
+  n.corner_noise_floor = 2;
+  n.stereo_only_corner_noise_floor = -1;
+  EXPECT_EQ(FrontendOptionsForMode(n, VioMode::kStereo).corner_noise_floor, 2);
+  n.stereo_only_corner_noise_floor = -3;
+  EXPECT_NE(n.Check().find("stereo_only_corner_noise_floor"), std::string::npos);
   g.klt_gain_offset = true;
   g.stereo_only_klt_gain_offset = false;
   EXPECT_FALSE(FrontendOptionsForMode(g, VioMode::kStereo).klt_gain_offset);

@@ -67,6 +67,15 @@ struct FrontendOptions {
   // faint, haze-blurred texture still yields corners. Off: on the foggy car route any floor
   // made the drift worse (fewer features; docs/VIO.md, weather).
   double min_corner_response = 0.0;
+  // A floor of the same response that follows the camera's noise: this many times the median
+  // response that the frame's noise alone would give (0: none). The noise is estimated on each
+  // frame's detection image (NoiseSigma); pure white noise of sigma grey levels has a median
+  // 3x3 Shi-Tomasi response of kNoiseCornerResponsePerSigma2 * sigma^2, its 99.9th percentile
+  // about 5 times that. Where haze leaves texture below the noise (far fog), a cell's best
+  // "corner" is noise, which KLT follows to nowhere; the quality level, relative to that best,
+  // cannot tell. Not on frames prepared with CLAHE or the local normalisation, whose gain varies
+  // across the image. Off here; stereo-only mode uses stereo_only_corner_noise_floor.
+  double corner_noise_floor = 0.0;
   // Contrast-limited adaptive histogram equalisation of both images before detection and
   // tracking (clip limit; 0: off) over a clahe_tiles x clahe_tiles grid. In 100 % dust the
   // texture is a grey level or two deep and KLT loses most tracks every frame (every frame a
@@ -172,9 +181,25 @@ struct FrontendOptions {
   // worse (docs/VIO.md, "2026-12-07 (late)"). With the IMU it moved rows both ways on the suite
   // and moves the drone's in-motion start tests, so it is off there.
   bool stereo_only_klt_gain_offset = true;
+  // Stereo-only mode uses this instead of corner_noise_floor when it is >= 0 (-1: the same). With
+  // the cameras' noise (`sim --camera-noise`, the simulator's default since 2026-12-07) the
+  // urban route's fog 100 % went 21.74 -> 1.85 m, its odometry alone 21.74 -> 11.12 m (docs/VIO.md,
+  // "2026-12-07 (last)"). Not measured with the IMU, where it moved two seeded drone tests
+  // (noise-free renderings), so off there.
+  double stereo_only_corner_noise_floor = 6.0;
 
   std::string Check() const;
 };
+
+// The median 3x3 Shi-Tomasi response (cv::cornerMinEigenVal, Sobel 3) of white noise of one grey
+// level (it scales with the variance); measured on 300x400 samples of Gaussian noise.
+inline constexpr double kNoiseCornerResponsePerSigma2 = 5.5e-6;
+
+// The noise sigma (grey levels) of an 8-bit grey image, by Immerkaer's mask ([1 -2 1; -2 4 -2;
+// 1 -2 1], which cancels planes and gains 6 on white noise): the median absolute response over
+// every second pixel / (6 * 0.6745). Texture inflates it; where most of the image is flat (haze,
+// sky, road) the median is the noise's.
+double NoiseSigma(const cv::Mat& grey);
 
 // Standard deviation of the intensities of `grey` (CV_8UC1), grey levels.
 double IntensityStd(const cv::Mat& grey);
@@ -205,6 +230,9 @@ struct FrontendStats {
   int contrast_switches = 0;
   // Temporal tracks moved by the gain-and-offset refinement (klt_gain_offset).
   int klt_refined = 0;
+  // The detection image's noise (NoiseSigma, grey levels) on frames that detect with
+  // corner_noise_floor; 0 otherwise.
+  double noise_sigma = 0;
 };
 
 // Gauss-Newton alignment of the (2h + 1)^2 window of `templ_image` around `t` to `target` from
@@ -298,6 +326,7 @@ class StereoFrontend {
   bool has_rotation_since_keyframe_ = false;
   cv::Ptr<cv::CLAHE> clahe_;   // when clahe_clip_limit > 0
   bool low_contrast_ = false;  // the low-contrast state (clahe_below_std or the local one)
+  double noise_sigma_ = 0;     // the last Detect's NoiseSigma (corner_noise_floor), else 0
   // Whether this frame gets the fog treatment (local normalisation, isotropy check).
   bool FogTreatment() const { return low_contrast_ || !options_.fog_treatment_low_contrast_only; }
   bool low_global_ = false, low_local_ = false;  // each measure's own state (hysteresis)
