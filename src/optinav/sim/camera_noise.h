@@ -1,6 +1,6 @@
 // A camera sensor's noise and its 8-bit quantisation: the last step of every simulated image
-// (`optinav sim`), after the renderer and the weather have computed the light that reaches each
-// pixel in grey levels, unrounded.
+// (`optinav sim`). The renderer's own image is 8-bit (its textures are); the weather is applied
+// to it unrounded, in grey levels, and only this step rounds.
 //
 // Model: per pixel one standard normal sample n, drawn from a hash of (stream, pixel), so that
 // the output depends only on the seed, the frame's time and the camera, never on the thread

@@ -629,6 +629,9 @@ TEST(VioConfig, DocumentedConfigEqualsTheBuiltInDefaults) {
   EXPECT_EQ(file.frontend.clahe_below_local_std, d.frontend.clahe_below_local_std);
   EXPECT_EQ(file.frontend.contrast_stretch_std, d.frontend.contrast_stretch_std);
   EXPECT_EQ(file.frontend.min_corner_response, d.frontend.min_corner_response);
+  EXPECT_EQ(file.frontend.corner_noise_floor, d.frontend.corner_noise_floor);
+  EXPECT_EQ(file.frontend.stereo_only_corner_noise_floor,
+            d.frontend.stereo_only_corner_noise_floor);
   EXPECT_EQ(file.frontend.detect_min_eigen, d.frontend.detect_min_eigen);
   EXPECT_EQ(file.frontend.highpass_sigma_px, d.frontend.highpass_sigma_px);
   EXPECT_EQ(file.frontend.local_norm_sigma_px, d.frontend.local_norm_sigma_px);

@@ -192,13 +192,15 @@ struct FrontendOptions {
 };
 
 // The median 3x3 Shi-Tomasi response (cv::cornerMinEigenVal, Sobel 3) of white noise of one grey
-// level (it scales with the variance); measured on 300x400 samples of Gaussian noise.
+// level (it scales with the variance); measured on 300x400 samples of Gaussian noise. For the
+// default corner_block_px (3) only: other block sizes change the distribution, and the floor does
+// not adjust.
 inline constexpr double kNoiseCornerResponsePerSigma2 = 5.5e-6;
 
 // The noise sigma (grey levels) of an 8-bit grey image, by Immerkaer's mask ([1 -2 1; -2 4 -2;
 // 1 -2 1], which cancels planes and gains 6 on white noise): the median absolute response over
-// every second pixel / (6 * 0.6745). Texture inflates it; where most of the image is flat (haze,
-// sky, road) the median is the noise's.
+// every second row and column / (6 * 0.6745), so in steps of 0.247 grey levels. Texture inflates
+// it; where most of the image is flat (haze, sky, road) the median is the noise's.
 double NoiseSigma(const cv::Mat& grey);
 
 // Standard deviation of the intensities of `grey` (CV_8UC1), grey levels.
