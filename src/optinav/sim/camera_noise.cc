@@ -5,17 +5,13 @@
 
 #include <fmt/format.h>
 
+#include "optinav/sim/internal/hash.h"
 #include "optinav/util/error.h"
 
 namespace optinav::sim {
 namespace {
 
-uint64_t Mix(uint64_t x) {
-  x += 0x9e3779b97f4a7c15ull;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
-  return x ^ (x >> 31);
-}
+using internal::SplitMix;
 
 // One standard normal sample from a 64-bit hash (Box-Muller on its two 32-bit halves).
 float NormalFromHash(uint64_t h) {
@@ -74,15 +70,20 @@ CameraNoiseOptions ParseCameraNoise(const std::string& text, const std::string& 
 }
 
 uint64_t CameraNoiseStream(uint64_t seed, int64_t t_ns, int camera) {
-  return Mix(Mix(Mix(seed ^ 0x6e6f697365ull) ^ static_cast<uint64_t>(t_ns)) ^
-             static_cast<uint64_t>(camera));
+  return SplitMix(SplitMix(SplitMix(seed ^ 0x6e6f697365ull) ^ static_cast<uint64_t>(t_ns)) ^
+                  static_cast<uint64_t>(camera));
 }
 
 cv::Mat ExposeToEightBits(const cv::Mat& light, const CameraNoiseOptions& noise, uint64_t stream) {
   if (light.type() != CV_32FC3) {
     throw Error(fmt::format("camera noise needs a CV_32FC3 image (got type {})", light.type()));
   }
-  cv::Mat out(light.size(), CV_8UC3);
+  cv::Mat out;
+  if (!noise.enabled) {  // the rounding alone (convertTo saturates and rounds as below)
+    light.convertTo(out, CV_8UC3);
+    return out;
+  }
+  out.create(light.size(), CV_8UC3);
   const float read2 = static_cast<float>(noise.read_sigma * noise.read_sigma);
   const float shot = static_cast<float>(noise.shot_variance);
   cv::parallel_for_(cv::Range(0, light.rows), [&](const cv::Range& range) {
@@ -91,12 +92,10 @@ cv::Mat ExposeToEightBits(const cv::Mat& light, const CameraNoiseOptions& noise,
       uint8_t* o = out.ptr<uint8_t>(y);
       for (int x = 0; x < light.cols; ++x) {
         const float n =
-            noise.enabled
-                ? NormalFromHash(Mix(stream ^ (static_cast<uint64_t>(y) * light.cols + x)))
-                : 0.0f;
+            NormalFromHash(SplitMix(stream ^ (static_cast<uint64_t>(y) * light.cols + x)));
         for (int c = 0; c < 3; ++c) {
           const float v = in[3 * x + c];
-          const float sigma = noise.enabled ? std::sqrt(read2 + shot * std::max(v, 0.0f)) : 0.0f;
+          const float sigma = std::sqrt(read2 + shot * std::max(v, 0.0f));
           o[3 * x + c] = cv::saturate_cast<uint8_t>(v + sigma * n);
         }
       }

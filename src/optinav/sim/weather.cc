@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
 
+#include "optinav/sim/internal/hash.h"
 #include "optinav/sim/internal/texture.h"
 #include "optinav/util/error.h"
 
@@ -28,12 +29,7 @@ constexpr KindName kKinds[] = {{WeatherKind::kNone, "none"},
                                {WeatherKind::kRoadSnow, "road-snow"},
                                {WeatherKind::kRoadLeaves, "road-leaves"}};
 
-uint64_t SplitMix(uint64_t x) {
-  x += 0x9e3779b97f4a7c15ull;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
-  return x ^ (x >> 31);
-}
+using internal::SplitMix;
 
 // A tiny deterministic generator seeded from a hash (std::mt19937 is too slow to seed per cell).
 struct HashRng {
