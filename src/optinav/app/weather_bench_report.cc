@@ -32,6 +32,12 @@ std::string ImageSize(const WeatherBenchOptions& o) {
                      static_cast<int>(std::lround(600 * o.scale)));
 }
 
+// "" for the default noise (on: 0.8:0.02); otherwise `prefix` and the setting (off or READ:SHOT).
+std::string CameraNoiseNote(const sim::CameraNoiseOptions& noise, const std::string& prefix) {
+  const std::string text = noise.ToString();
+  return text == sim::CameraNoiseOptions().ToString() ? "" : prefix + text;
+}
+
 std::string DocumentCell(const WeatherCell& c) {
   if (!c.document) return "-";
   return c.document->lost ? "lost" : Fixed(c.document->mean_error_m);
@@ -72,7 +78,7 @@ std::string WeatherBenchTable(const WeatherBenchOptions& o, const Cells& cells, 
       "weather document (SEEDS.md part 1).\n\n",
       ImageSize(o), o.scale, VehicleModelName(o.vehicle),
       o.varied_asphalt ? "" : ", --asphalt tiled",
-      o.camera_noise.enabled ? "" : ", --camera-noise off",
+      CameraNoiseNote(o.camera_noise, ", --camera-noise "),
       o.duration_s > 0 ? fmt::format(", first {:g} s", o.duration_s) : "", o.seeds,
       o.seeds > 1 ? " (mean [max] over seeds)" : "");
   t += "| world | condition | mode | mean error (m) | x clear | odometry (m) | APE SE(3) (m) | "
@@ -351,7 +357,7 @@ void WriteWeatherPlot(const std::string& stem, const WeatherBenchOptions& option
   cv.Text(10, 20,
           fmt::format("optinav bench weather: mean error after the start pose, car route, {}{}{}",
                       ImageSize(options), options.varied_asphalt ? "" : ", tiled asphalt",
-                      options.camera_noise.enabled ? "" : ", no camera noise"),
+                      CameraNoiseNote(options.camera_noise, ", camera noise ")),
           13);
   // Legend.
   double lx = left;

@@ -8,8 +8,10 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "optinav/app/internal/weather_bench_report.h"
 #include "optinav/io/text_parse.h"
 #include "optinav/report/html_report.h"
+#include "optinav/sim/camera_noise.h"
 #include "optinav/sim/simulation.h"
 #include "optinav/util/testing.h"
 
@@ -90,6 +92,21 @@ bool Said(const std::vector<std::string>& lines, const std::string& what) {
 // A loop is checked against the truth's translation between its two keyframes: one measured as
 // the truth has it passes, one a road-texture period (8 m) off does not; a loop without its
 // relative pose (stats written before it) is not checked.
+// The table's title names a camera noise other than the default, custom values included.
+TEST(WeatherBench, TableTitleNamesTheCameraNoise) {
+  WeatherBenchOptions o;
+  const auto title = [&](const std::string& noise) {
+    o.camera_noise = sim::ParseCameraNoise(noise, "--camera-noise");
+    const std::string t = internal::WeatherBenchTable(o, {}, {});
+    return t.substr(0, t.find('\n'));
+  };
+  EXPECT_EQ(title("on").find("camera-noise"), std::string::npos);
+  EXPECT_EQ(title("0.8:0.02").find("camera-noise"), std::string::npos);
+  EXPECT_NE(title("off").find(", --camera-noise off;"), std::string::npos) << title("off");
+  EXPECT_NE(title("1.5:0.04").find(", --camera-noise 1.5:0.04;"), std::string::npos)
+      << title("1.5:0.04");
+}
+
 TEST(WeatherBench, LoopsOffTheTruth) {
   Trajectory truth;
   for (int i = 0; i <= 100; ++i) {  // 10 m/s along x, turning slowly

@@ -118,6 +118,11 @@ void AddCommonFlags(CLI::App& app, SimFlags& f) {
       ->capture_default_str();
   app.add_option("--scale", f.scale, "image size factor, e.g. 0.5 for half resolution")
       ->capture_default_str();
+  app.add_option("--camera-noise", f.camera_noise,
+                 "on | off | READ:SHOT: the cameras' noise before 8-bit rounding, sigma^2 = READ^2 "
+                 "+ SHOT * grey level (on: 0.8:0.02, measured on EuRoC's cam0; off: as rendered "
+                 "before 2026-12-07)")
+      ->capture_default_str();
 }
 
 void AddSimFlags(CLI::App& app, SimFlags& f) {
@@ -137,11 +142,6 @@ void AddSimFlags(CLI::App& app, SimFlags& f) {
                  "urban road: varied (the default: 8 asphalt variants, one per 8 m, picked by a "
                  "hash, no exact repetition) | tiled (one texture repeating every 8 m, as "
                  "rendered before 2026-12-06)");
-  app.add_option("--camera-noise", f.camera_noise,
-                 "on | off | READ:SHOT: the cameras' noise before 8-bit rounding, sigma^2 = READ^2 "
-                 "+ SHOT * grey level (on: 0.8:0.02, measured on EuRoC's cam0; off: as rendered "
-                 "before 2026-12-07)")
-      ->capture_default_str();
   AddCommonFlags(app, f);
   app.add_option("--speed", f.speed, "drone speed (m/s)")->capture_default_str();
   app.add_option("--altitude", f.altitude, "drone altitude above ground (m)")
