@@ -15,6 +15,9 @@
 //    low-contrast CLAHE, no trackability check of new corners, no ground-vehicle defaults),
 //    side by side in the same run. "now" in stereo-imu applies the ground vehicle's defaults
 //    (app::ApplyGroundVehicleDefaults: what `optinav vio` and `bench weather` run on car routes).
+//    Rendered with the cameras' noise since 2026-12-07 (the simulator's default). Since then
+//    "filed" also has plain KLT and no corner noise floor (stereo-only defaults added later);
+//    "<weather>_stereo_nofloor" is "now" without the floor (its cost).
 //    Target: total per frame median <= 20 ms, p95 <= 50 ms on one core (run under `taskset -c 0`).
 // Data: ../shared/data (or $OPTINAV_SHARED_DATA); the car frames are generated.
 #include <cstdlib>
@@ -127,26 +130,31 @@ void BM_VioEurocMicro(benchmark::State& state) {
 }
 BENCHMARK(BM_VioEurocMicro)->Unit(benchmark::kMillisecond)->Iterations(3);
 
+enum class CarFrontend { kNow, kFiled, kNoFloor };
+
 void BM_VioCar800(benchmark::State& state, const std::string& weather, vio::VioMode mode,
-                  bool filed_frontend) {
+                  CarFrontend frontend) {
   const Clip& c = CarClip(weather);  // rendered on every core
   cv::setNumThreads(1);
   vio::VioOptions options;
   options.mode = mode;
-  if (filed_frontend) {  // the frontend before 2026-11-25
+  if (frontend == CarFrontend::kFiled) {  // the frontend before 2026-11-25
     options.frontend.clahe_clip_limit = 0;
     options.frontend.detect_min_eigen = 0;
+    options.frontend.stereo_only_corner_noise_floor = 0;
+    options.frontend.stereo_only_klt_gain_offset = false;
   } else if (mode == vio::VioMode::kStereoImu) {  // --vehicle auto on a car route
     app::ApplyGroundVehicleDefaults(&options.backend);
   }
+  if (frontend == CarFrontend::kNoFloor) options.frontend.stereo_only_corner_noise_floor = 0;
   RunEstimator(state, c, options);
 }
-#define OPTINAV_CAR_BENCH(name, weather, mode)                       \
-  BENCHMARK_CAPTURE(BM_VioCar800, name##_now, weather, mode, false)  \
-      ->Unit(benchmark::kMillisecond)                                \
-      ->Iterations(1);                                               \
-  BENCHMARK_CAPTURE(BM_VioCar800, name##_filed, weather, mode, true) \
-      ->Unit(benchmark::kMillisecond)                                \
+#define OPTINAV_CAR_BENCH(name, weather, mode)                                      \
+  BENCHMARK_CAPTURE(BM_VioCar800, name##_now, weather, mode, CarFrontend::kNow)     \
+      ->Unit(benchmark::kMillisecond)                                               \
+      ->Iterations(1);                                                              \
+  BENCHMARK_CAPTURE(BM_VioCar800, name##_filed, weather, mode, CarFrontend::kFiled) \
+      ->Unit(benchmark::kMillisecond)                                               \
       ->Iterations(1)
 OPTINAV_CAR_BENCH(clear_stereo, "none", vio::VioMode::kStereo);
 OPTINAV_CAR_BENCH(fog100_stereo, "fog:100", vio::VioMode::kStereo);
@@ -155,6 +163,16 @@ OPTINAV_CAR_BENCH(clear_stereo_imu, "none", vio::VioMode::kStereoImu);
 OPTINAV_CAR_BENCH(fog100_stereo_imu, "fog:100", vio::VioMode::kStereoImu);
 OPTINAV_CAR_BENCH(dust100_stereo_imu, "dust:100", vio::VioMode::kStereoImu);
 #undef OPTINAV_CAR_BENCH
+// The stereo-only corner floor's cost (frontend.stereo_only_corner_noise_floor 0, otherwise
+// the defaults), beside "now" in the same run.
+BENCHMARK_CAPTURE(BM_VioCar800, clear_stereo_nofloor, "none", vio::VioMode::kStereo,
+                  CarFrontend::kNoFloor)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1);
+BENCHMARK_CAPTURE(BM_VioCar800, fog100_stereo_nofloor, "fog:100", vio::VioMode::kStereo,
+                  CarFrontend::kNoFloor)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1);
 
 void BM_FrontendOnly(benchmark::State& state) {
   const Clip& c = LoadClip();
