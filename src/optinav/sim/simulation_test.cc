@@ -321,6 +321,23 @@ TEST(Simulation, IsRenderingOfComparesTheRecordedParameters) {
   testing::WriteFile(marker, t.dump(2));
   EXPECT_TRUE(IsRenderingOf(o.out_dir, terrain, &why)) << why;
 
+  // The orthophoto: the same file by another path is the same map; another file is not.
+  const fs::path map = dir / "maps" / "map.tif", other_map = dir / "maps" / "other.tif";
+  testing::WriteFile(map, "tif");
+  testing::WriteFile(other_map, "tif");
+  t["ortho"] = fs::absolute(map).string();
+  testing::WriteFile(marker, t.dump(2));
+  SimulationOptions ortho = terrain;
+  ortho.world.ortho_path = (dir / "maps" / "." / "map.tif").string();
+  EXPECT_TRUE(IsRenderingOf(o.out_dir, ortho, &why)) << why;
+  ortho.world.ortho_path = other_map.string();
+  EXPECT_FALSE(IsRenderingOf(o.out_dir, ortho, &why));
+  EXPECT_EQ(why.rfind("ortho:", 0), 0u) << why;
+  ortho.world.ortho_path = (dir / "maps" / "missing.tif").string();
+  EXPECT_FALSE(IsRenderingOf(o.out_dir, ortho, &why));
+  t.erase("ortho");
+  testing::WriteFile(marker, t.dump(2));
+
   // Another renderer version, a broken marker, none.
   j["renderer"] = kRendererVersion + 1;
   testing::WriteFile(marker, j.dump(2));
