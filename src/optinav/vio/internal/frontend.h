@@ -312,6 +312,7 @@ class StereoFrontend {
   // changed; the contrast-normalised images are ours alone (a pyramid copies them).
   std::vector<cv::Mat> spare_pyramid_, right_pyramid_;
   cv::Mat left_eq_buffer_, right_eq_buffer_, detect_mask_;
+  cv::Mat corner_response_, corner_strong_;  // the corner floor's, kept as the mask is
   std::vector<Track> tracks_;
   uint64_t next_id_ = 1;
   // The last keyframe: its time and its tracks' pixels.
