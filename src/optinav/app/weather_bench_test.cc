@@ -87,11 +87,6 @@ bool Said(const std::vector<std::string>& lines, const std::string& what) {
   return false;
 }
 
-// Six seconds of the urban car route at 400x300, clear and in 100 % dust, two jobs: the real
-// pipeline end to end (rendering, threaded VIO, the metrics, the files), then --reuse.
-// A loop is checked against the truth's translation between its two keyframes: one measured as
-// the truth has it passes, one a road-texture period (8 m) off does not; a loop without its
-// relative pose (stats written before it) is not checked.
 // The table's title names a camera noise other than the default, custom values included.
 TEST(WeatherBench, TableTitleNamesTheCameraNoise) {
   WeatherBenchOptions o;
@@ -107,6 +102,9 @@ TEST(WeatherBench, TableTitleNamesTheCameraNoise) {
       << title("1.5:0.04");
 }
 
+// A loop is checked against the truth's translation between its two keyframes: one measured as
+// the truth has it passes, one a road-texture period (8 m) off does not; a loop without its
+// relative pose (stats written before it) is not checked.
 TEST(WeatherBench, LoopsOffTheTruth) {
   Trajectory truth;
   for (int i = 0; i <= 100; ++i) {  // 10 m/s along x, turning slowly
@@ -134,6 +132,8 @@ TEST(WeatherBench, LoopsOffTheTruth) {
   EXPECT_EQ(LoopsOffTruth(truth, loops, 0.2).second, 2u);
 }
 
+// Six seconds of the urban car route at 400x300, clear and in 100 % dust, two jobs: the real
+// pipeline end to end (rendering, threaded VIO, the metrics, the files), then --reuse.
 TEST(WeatherBench, ShortUrbanRouteClearAndDustThenReuse) {
   const fs::path dir = testing::MakeTempDir("weather_bench");
   WeatherBenchOptions o;
